@@ -457,6 +457,64 @@ static const int diag_slot_swing[] = {28, 24, 20, 16, 29, 25, 21, 17, 30, 26, 22
 static const int off_start_swing[] = {0, 0, 0, 0, 0, 4, 8, 12, 16};
 static const int off_col_swing[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3};
 static const int off_value_swing[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 39, 38, 37, 36};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_swing) */
+static void solve_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[3];
+    y[1] = b[4];
+    y[2] = b[5];
+    y[3] = b[7];
+    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
+    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
+    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
+    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    y[1] -= A[1] * y[0];
+    y[2] -= A[2] * y[0];
+    y[3] -= A[3] * y[0];
+    y[2] -= A[6] * y[1];
+    y[3] -= A[7] * y[1];
+    y[3] -= A[11] * y[2];
+    y[3] *= 1.0 / A[15];
+    y[0] -= A[12] * y[3];
+    y[1] -= A[13] * y[3];
+    y[2] -= A[14] * y[3];
+    y[2] *= 1.0 / A[10];
+    y[0] -= A[8] * y[2];
+    y[1] -= A[9] * y[2];
+    y[1] *= 1.0 / A[5];
+    y[0] -= A[4] * y[1];
+    y[0] *= 1.0 / A[0];
+    { double acc = b[0]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; y[4] = acc; }
+    { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
+    { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
+    { double acc = b[6]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
+    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    y[5] -= A[17] * y[4];
+    y[6] -= A[18] * y[4];
+    y[7] -= A[19] * y[4];
+    y[6] -= A[22] * y[5];
+    y[7] -= A[23] * y[5];
+    y[7] -= A[27] * y[6];
+    y[7] *= 1.0 / A[31];
+    y[4] -= A[28] * y[7];
+    y[5] -= A[29] * y[7];
+    y[6] -= A[30] * y[7];
+    y[6] *= 1.0 / A[26];
+    y[4] -= A[24] * y[6];
+    y[5] -= A[25] * y[6];
+    y[5] *= 1.0 / A[21];
+    y[4] -= A[20] * y[5];
+    y[4] *= 1.0 / A[16];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_swing_0(A, off, piv, b, y);
+    for (int j = 0; j < 8; ++j) x[col_order_swing[j]] = y[j];
+}
 
 const kinegen_model boom_dual_euler_parameters_swing = {
     .layout = &boom_dual_euler_parameters_layout, .case_name = "swing",
@@ -469,6 +527,7 @@ const kinegen_model boom_dual_euler_parameters_swing = {
     .row_order = row_order_swing, .col_order = col_order_swing,
     .n_store = 32, .n_diag = 30, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,
     .n_off = 16, .off_start = off_start_swing, .off_col = off_col_swing, .off_value = off_value_swing,
+    .solve = solve_swing,
     .work_doubles = BOOM_DUAL_EULER_PARAMETERS_WORK_DOUBLES_SWING, .work_ints = BOOM_DUAL_EULER_PARAMETERS_WORK_INTS_SWING,
     .n_kernels = 5, .kernels = kernels_swing, .design = NULL,
 };

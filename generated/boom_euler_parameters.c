@@ -390,6 +390,46 @@ static const int diag_slot_swing[] = {16, 17, 18, 0, 4, 8, 12, 1, 5, 9, 13, 2, 6
 static const int off_start_swing[] = {0, 0, 0, 0, 0, 2, 6, 10};
 static const int off_col_swing[] = {0, 1, 0, 1, 2, 3, 0, 1, 2, 3};
 static const int off_value_swing[] = {1, 2, 4, 5, 6, 7, 9, 10, 11, 12};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_swing) */
+static void solve_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[3];
+    y[1] = b[4];
+    y[2] = b[5];
+    y[3] = b[6];
+    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
+    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
+    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
+    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    y[1] -= A[1] * y[0];
+    y[2] -= A[2] * y[0];
+    y[3] -= A[3] * y[0];
+    y[2] -= A[6] * y[1];
+    y[3] -= A[7] * y[1];
+    y[3] -= A[11] * y[2];
+    y[3] *= 1.0 / A[15];
+    y[0] -= A[12] * y[3];
+    y[1] -= A[13] * y[3];
+    y[2] -= A[14] * y[3];
+    y[2] *= 1.0 / A[10];
+    y[0] -= A[8] * y[2];
+    y[1] -= A[9] * y[2];
+    y[1] *= 1.0 / A[5];
+    y[0] -= A[4] * y[1];
+    y[0] *= 1.0 / A[0];
+    { double acc = b[0]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; y[4] = acc; }
+    y[4] *= 1.0 / A[16];
+    { double acc = b[1]; acc -= off[2] * y[0]; acc -= off[3] * y[1]; acc -= off[4] * y[2]; acc -= off[5] * y[3]; y[5] = acc; }
+    y[5] *= 1.0 / A[17];
+    { double acc = b[2]; acc -= off[6] * y[0]; acc -= off[7] * y[1]; acc -= off[8] * y[2]; acc -= off[9] * y[3]; y[6] = acc; }
+    y[6] *= 1.0 / A[18];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_swing_0(A, off, piv, b, y);
+    for (int j = 0; j < 7; ++j) x[col_order_swing[j]] = y[j];
+}
 
 const kinegen_model boom_euler_parameters_swing = {
     .layout = &boom_euler_parameters_layout, .case_name = "swing",
@@ -402,6 +442,7 @@ const kinegen_model boom_euler_parameters_swing = {
     .row_order = row_order_swing, .col_order = col_order_swing,
     .n_store = 19, .n_diag = 17, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,
     .n_off = 10, .off_start = off_start_swing, .off_col = off_col_swing, .off_value = off_value_swing,
+    .solve = solve_swing,
     .work_doubles = BOOM_EULER_PARAMETERS_WORK_DOUBLES_SWING, .work_ints = BOOM_EULER_PARAMETERS_WORK_INTS_SWING,
     .n_kernels = 5, .kernels = kernels_swing, .design = NULL,
 };

@@ -795,6 +795,76 @@ static const int diag_slot_crank_turn[] = {0, 1, 2, 3, 5, 4, 6, 16, 17, 15, 26, 
 static const int off_start_crank_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 21, 23};
 static const int off_col_crank_turn[] = {3, 4, 2, 3, 4, 0, 4, 10, 1, 3, 10, 5, 7, 12, 6, 9, 13, 5, 6, 8, 11, 5, 6};
 static const int off_value_crank_turn[] = {50, 51, 17, 15, 16, 9, 7, 8, 13, 11, 12, 22, 24, 21, 28, 30, 27, 35, 34, 36, 33, 41, 40};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_crank_turn) */
+static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[4] *= 1.0 / A[6];
+    y[3] -= A[5] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[5] = b[15];
+    y[6] = b[16];
+    { int p = 5 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 5 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[6] -= A[8] * y[5];
+    y[6] *= 1.0 / A[10];
+    y[5] -= A[9] * y[6];
+    y[5] *= 1.0 / A[7];
+    y[7] = b[12];
+    y[7] *= 1.0 / A[11];
+    y[8] = b[14];
+    y[8] *= 1.0 / A[12];
+    y[9] = b[13];
+    y[9] *= 1.0 / A[13];
+    { double acc = b[17]; acc -= off[0] * y[3]; acc -= off[1] * y[4]; y[10] = acc; }
+    y[10] *= 1.0 / A[14];
+    { double acc = b[7]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; acc -= off[4] * y[4]; y[11] = acc; }
+    y[11] *= 1.0 / A[15];
+    { double acc = b[5]; acc -= off[5] * y[0]; acc -= off[6] * y[4]; acc -= off[7] * y[10]; y[12] = acc; }
+    y[12] *= 1.0 / A[16];
+    { double acc = b[6]; acc -= off[8] * y[1]; acc -= off[9] * y[3]; acc -= off[10] * y[10]; y[13] = acc; }
+    y[13] *= 1.0 / A[17];
+    { double acc = b[8]; acc -= off[11] * y[5]; acc -= off[12] * y[7]; acc -= off[13] * y[12]; y[14] = acc; }
+    { double acc = b[9]; acc -= off[14] * y[6]; acc -= off[15] * y[9]; acc -= off[16] * y[13]; y[15] = acc; }
+    { double acc = b[10]; acc -= off[17] * y[5]; acc -= off[18] * y[6]; acc -= off[19] * y[8]; acc -= off[20] * y[11]; y[16] = acc; }
+    { double acc = b[11]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; y[17] = acc; }
+    { int p = 14 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 14 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 14 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 14 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    y[15] -= A[19] * y[14];
+    y[16] -= A[20] * y[14];
+    y[17] -= A[21] * y[14];
+    y[16] -= A[24] * y[15];
+    y[17] -= A[25] * y[15];
+    y[17] -= A[29] * y[16];
+    y[17] *= 1.0 / A[33];
+    y[14] -= A[30] * y[17];
+    y[15] -= A[31] * y[17];
+    y[16] -= A[32] * y[17];
+    y[16] *= 1.0 / A[28];
+    y[14] -= A[26] * y[16];
+    y[15] -= A[27] * y[16];
+    y[15] *= 1.0 / A[23];
+    y[14] -= A[22] * y[15];
+    y[14] *= 1.0 / A[18];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_crank_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 18; ++j) x[col_order_crank_turn[j]] = y[j];
+}
 
 const kinegen_model four_bar_dual_quaternion_crank_turn = {
     .layout = &four_bar_dual_quaternion_layout, .case_name = "crank_turn",
@@ -807,6 +877,7 @@ const kinegen_model four_bar_dual_quaternion_crank_turn = {
     .row_order = row_order_crank_turn, .col_order = col_order_crank_turn,
     .n_store = 34, .n_diag = 30, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,
     .n_off = 23, .off_start = off_start_crank_turn, .off_col = off_col_crank_turn, .off_value = off_value_crank_turn,
+    .solve = solve_crank_turn,
     .work_doubles = FOUR_BAR_DUAL_QUATERNION_WORK_DOUBLES_CRANK_TURN, .work_ints = FOUR_BAR_DUAL_QUATERNION_WORK_INTS_CRANK_TURN,
     .n_kernels = 5, .kernels = kernels_crank_turn, .design = NULL,
 };

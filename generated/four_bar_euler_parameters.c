@@ -776,6 +776,138 @@ static const int diag_slot_crank_turn[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 
 static const int off_start_crank_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 8, 13, 15, 17, 19, 19, 19, 19, 19, 19};
 static const int off_col_crank_turn[] = {0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 9, 10, 8, 11, 7, 12};
 static const int off_value_crank_turn[] = {11, 12, 13, 15, 16, 17, 18, 19, 21, 22, 23, 24, 25, 30, 27, 38, 33, 48, 43};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_crank_turn) */
+static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    y[5] = b[17];
+    y[6] = b[20];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[5] -= A[5] * y[3];
+    y[6] -= A[6] * y[3];
+    y[5] -= A[9] * y[4];
+    y[6] -= A[10] * y[4];
+    y[6] -= A[14] * y[5];
+    y[6] *= 1.0 / A[18];
+    y[3] -= A[15] * y[6];
+    y[4] -= A[16] * y[6];
+    y[5] -= A[17] * y[6];
+    y[5] *= 1.0 / A[13];
+    y[3] -= A[11] * y[5];
+    y[4] -= A[12] * y[5];
+    y[4] *= 1.0 / A[8];
+    y[3] -= A[7] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[7] = b[14];
+    y[7] *= 1.0 / A[19];
+    y[8] = b[13];
+    y[8] *= 1.0 / A[20];
+    y[9] = b[12];
+    y[9] *= 1.0 / A[21];
+    { double acc = b[5]; acc -= off[0] * y[0]; acc -= off[1] * y[3]; acc -= off[2] * y[4]; y[10] = acc; }
+    y[10] *= 1.0 / A[22];
+    { double acc = b[6]; acc -= off[3] * y[1]; acc -= off[4] * y[3]; acc -= off[5] * y[4]; acc -= off[6] * y[5]; acc -= off[7] * y[6]; y[11] = acc; }
+    y[11] *= 1.0 / A[23];
+    { double acc = b[7]; acc -= off[8] * y[2]; acc -= off[9] * y[3]; acc -= off[10] * y[4]; acc -= off[11] * y[5]; acc -= off[12] * y[6]; y[12] = acc; }
+    y[12] *= 1.0 / A[24];
+    { double acc = b[8]; acc -= off[13] * y[9]; acc -= off[14] * y[10]; y[13] = acc; }
+    { double acc = b[9]; acc -= off[15] * y[8]; acc -= off[16] * y[11]; y[14] = acc; }
+    { double acc = b[10]; acc -= off[17] * y[7]; acc -= off[18] * y[12]; y[15] = acc; }
+    y[16] = b[11];
+    y[17] = b[15];
+    y[18] = b[16];
+    y[19] = b[18];
+    y[20] = b[19];
+    { int p = 13 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 13 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 13 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 13 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 13 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { int p = 13 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
+    { int p = 13 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
+    { int p = 13 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
+    y[14] -= A[26] * y[13];
+    y[15] -= A[27] * y[13];
+    y[16] -= A[28] * y[13];
+    y[17] -= A[29] * y[13];
+    y[18] -= A[30] * y[13];
+    y[19] -= A[31] * y[13];
+    y[20] -= A[32] * y[13];
+    y[15] -= A[35] * y[14];
+    y[16] -= A[36] * y[14];
+    y[17] -= A[37] * y[14];
+    y[18] -= A[38] * y[14];
+    y[19] -= A[39] * y[14];
+    y[20] -= A[40] * y[14];
+    y[16] -= A[44] * y[15];
+    y[17] -= A[45] * y[15];
+    y[18] -= A[46] * y[15];
+    y[19] -= A[47] * y[15];
+    y[20] -= A[48] * y[15];
+    y[17] -= A[53] * y[16];
+    y[18] -= A[54] * y[16];
+    y[19] -= A[55] * y[16];
+    y[20] -= A[56] * y[16];
+    y[18] -= A[62] * y[17];
+    y[19] -= A[63] * y[17];
+    y[20] -= A[64] * y[17];
+    y[19] -= A[71] * y[18];
+    y[20] -= A[72] * y[18];
+    y[20] -= A[80] * y[19];
+    y[20] *= 1.0 / A[88];
+    y[13] -= A[81] * y[20];
+    y[14] -= A[82] * y[20];
+    y[15] -= A[83] * y[20];
+    y[16] -= A[84] * y[20];
+    y[17] -= A[85] * y[20];
+    y[18] -= A[86] * y[20];
+    y[19] -= A[87] * y[20];
+    y[19] *= 1.0 / A[79];
+    y[13] -= A[73] * y[19];
+    y[14] -= A[74] * y[19];
+    y[15] -= A[75] * y[19];
+    y[16] -= A[76] * y[19];
+    y[17] -= A[77] * y[19];
+    y[18] -= A[78] * y[19];
+    y[18] *= 1.0 / A[70];
+    y[13] -= A[65] * y[18];
+    y[14] -= A[66] * y[18];
+    y[15] -= A[67] * y[18];
+    y[16] -= A[68] * y[18];
+    y[17] -= A[69] * y[18];
+    y[17] *= 1.0 / A[61];
+    y[13] -= A[57] * y[17];
+    y[14] -= A[58] * y[17];
+    y[15] -= A[59] * y[17];
+    y[16] -= A[60] * y[17];
+    y[16] *= 1.0 / A[52];
+    y[13] -= A[49] * y[16];
+    y[14] -= A[50] * y[16];
+    y[15] -= A[51] * y[16];
+    y[15] *= 1.0 / A[43];
+    y[13] -= A[41] * y[15];
+    y[14] -= A[42] * y[15];
+    y[14] *= 1.0 / A[34];
+    y[13] -= A[33] * y[14];
+    y[13] *= 1.0 / A[25];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_crank_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 21; ++j) x[col_order_crank_turn[j]] = y[j];
+}
 
 const kinegen_model four_bar_euler_parameters_crank_turn = {
     .layout = &four_bar_euler_parameters_layout, .case_name = "crank_turn",
@@ -788,6 +920,7 @@ const kinegen_model four_bar_euler_parameters_crank_turn = {
     .row_order = row_order_crank_turn, .col_order = col_order_crank_turn,
     .n_store = 89, .n_diag = 67, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,
     .n_off = 19, .off_start = off_start_crank_turn, .off_col = off_col_crank_turn, .off_value = off_value_crank_turn,
+    .solve = solve_crank_turn,
     .work_doubles = FOUR_BAR_EULER_PARAMETERS_WORK_DOUBLES_CRANK_TURN, .work_ints = FOUR_BAR_EULER_PARAMETERS_WORK_INTS_CRANK_TURN,
     .n_kernels = 5, .kernels = kernels_crank_turn, .design = NULL,
 };

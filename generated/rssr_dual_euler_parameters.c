@@ -989,6 +989,144 @@ static const int diag_slot_turn[] = {16, 28, 24, 20, 17, 29, 25, 21, 18, 30, 26,
 static const int off_start_turn[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 16, 16, 16, 16, 16, 24, 24, 24};
 static const int off_col_turn[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7};
 static const int off_value_turn[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 87, 86, 85, 84, 67, 66, 65, 64, 68, 71, 70, 69};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_turn) */
+static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[3];
+    y[1] = b[4];
+    y[2] = b[11];
+    y[3] = b[15];
+    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
+    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
+    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
+    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    y[1] -= A[1] * y[0];
+    y[2] -= A[2] * y[0];
+    y[3] -= A[3] * y[0];
+    y[2] -= A[6] * y[1];
+    y[3] -= A[7] * y[1];
+    y[3] -= A[11] * y[2];
+    y[3] *= 1.0 / A[15];
+    y[0] -= A[12] * y[3];
+    y[1] -= A[13] * y[3];
+    y[2] -= A[14] * y[3];
+    y[2] *= 1.0 / A[10];
+    y[0] -= A[8] * y[2];
+    y[1] -= A[9] * y[2];
+    y[1] *= 1.0 / A[5];
+    y[0] -= A[4] * y[1];
+    y[0] *= 1.0 / A[0];
+    { double acc = b[0]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; y[4] = acc; }
+    { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
+    { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
+    { double acc = b[12]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
+    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    y[5] -= A[17] * y[4];
+    y[6] -= A[18] * y[4];
+    y[7] -= A[19] * y[4];
+    y[6] -= A[22] * y[5];
+    y[7] -= A[23] * y[5];
+    y[7] -= A[27] * y[6];
+    y[7] *= 1.0 / A[31];
+    y[4] -= A[28] * y[7];
+    y[5] -= A[29] * y[7];
+    y[6] -= A[30] * y[7];
+    y[6] *= 1.0 / A[26];
+    y[4] -= A[24] * y[6];
+    y[5] -= A[25] * y[6];
+    y[5] *= 1.0 / A[21];
+    y[4] -= A[20] * y[5];
+    y[4] *= 1.0 / A[16];
+    y[8] = b[5];
+    y[9] = b[6];
+    y[10] = b[7];
+    y[11] = b[8];
+    y[12] = b[9];
+    { double acc = b[10]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[4]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[7]; y[13] = acc; }
+    y[14] = b[13];
+    y[15] = b[14];
+    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
+    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
+    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
+    { int p = 8 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 8 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 8 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 8 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    y[9] -= A[33] * y[8];
+    y[10] -= A[34] * y[8];
+    y[11] -= A[35] * y[8];
+    y[12] -= A[36] * y[8];
+    y[13] -= A[37] * y[8];
+    y[14] -= A[38] * y[8];
+    y[15] -= A[39] * y[8];
+    y[10] -= A[42] * y[9];
+    y[11] -= A[43] * y[9];
+    y[12] -= A[44] * y[9];
+    y[13] -= A[45] * y[9];
+    y[14] -= A[46] * y[9];
+    y[15] -= A[47] * y[9];
+    y[11] -= A[51] * y[10];
+    y[12] -= A[52] * y[10];
+    y[13] -= A[53] * y[10];
+    y[14] -= A[54] * y[10];
+    y[15] -= A[55] * y[10];
+    y[12] -= A[60] * y[11];
+    y[13] -= A[61] * y[11];
+    y[14] -= A[62] * y[11];
+    y[15] -= A[63] * y[11];
+    y[13] -= A[69] * y[12];
+    y[14] -= A[70] * y[12];
+    y[15] -= A[71] * y[12];
+    y[14] -= A[78] * y[13];
+    y[15] -= A[79] * y[13];
+    y[15] -= A[87] * y[14];
+    y[15] *= 1.0 / A[95];
+    y[8] -= A[88] * y[15];
+    y[9] -= A[89] * y[15];
+    y[10] -= A[90] * y[15];
+    y[11] -= A[91] * y[15];
+    y[12] -= A[92] * y[15];
+    y[13] -= A[93] * y[15];
+    y[14] -= A[94] * y[15];
+    y[14] *= 1.0 / A[86];
+    y[8] -= A[80] * y[14];
+    y[9] -= A[81] * y[14];
+    y[10] -= A[82] * y[14];
+    y[11] -= A[83] * y[14];
+    y[12] -= A[84] * y[14];
+    y[13] -= A[85] * y[14];
+    y[13] *= 1.0 / A[77];
+    y[8] -= A[72] * y[13];
+    y[9] -= A[73] * y[13];
+    y[10] -= A[74] * y[13];
+    y[11] -= A[75] * y[13];
+    y[12] -= A[76] * y[13];
+    y[12] *= 1.0 / A[68];
+    y[8] -= A[64] * y[12];
+    y[9] -= A[65] * y[12];
+    y[10] -= A[66] * y[12];
+    y[11] -= A[67] * y[12];
+    y[11] *= 1.0 / A[59];
+    y[8] -= A[56] * y[11];
+    y[9] -= A[57] * y[11];
+    y[10] -= A[58] * y[11];
+    y[10] *= 1.0 / A[50];
+    y[8] -= A[48] * y[10];
+    y[9] -= A[49] * y[10];
+    y[9] *= 1.0 / A[41];
+    y[8] -= A[40] * y[9];
+    y[8] *= 1.0 / A[32];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 16; ++j) x[col_order_turn[j]] = y[j];
+}
 
 const kinegen_model rssr_dual_euler_parameters_turn = {
     .layout = &rssr_dual_euler_parameters_layout, .case_name = "turn",
@@ -1001,6 +1139,7 @@ const kinegen_model rssr_dual_euler_parameters_turn = {
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 96, .n_diag = 82, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 24, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
+    .solve = solve_turn,
     .work_doubles = RSSR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_TURN, .work_ints = RSSR_DUAL_EULER_PARAMETERS_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

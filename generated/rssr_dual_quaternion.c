@@ -693,6 +693,48 @@ static const int diag_slot_turn[] = {0, 1, 2, 3, 5, 4, 6, 7, 8, 9, 10, 12, 11, 1
 static const int off_start_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 13};
 static const int off_col_turn[] = {3, 4, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
 static const int off_value_turn[] = {26, 27, 17, 18, 19, 14, 15, 23, 24, 25, 21, 22, 16};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_turn) */
+static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[4] *= 1.0 / A[6];
+    y[3] -= A[5] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[5] = b[5];
+    y[5] *= 1.0 / A[7];
+    y[6] = b[6];
+    y[6] *= 1.0 / A[8];
+    y[7] = b[7];
+    y[7] *= 1.0 / A[9];
+    y[8] = b[8];
+    y[9] = b[9];
+    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
+    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
+    y[9] -= A[11] * y[8];
+    y[9] *= 1.0 / A[13];
+    y[8] -= A[12] * y[9];
+    y[8] *= 1.0 / A[10];
+    { double acc = b[11]; acc -= off[0] * y[3]; acc -= off[1] * y[4]; y[10] = acc; }
+    y[10] *= 1.0 / A[14];
+    { double acc = b[10]; acc -= off[2] * y[0]; acc -= off[3] * y[1]; acc -= off[4] * y[2]; acc -= off[5] * y[3]; acc -= off[6] * y[4]; acc -= off[7] * y[5]; acc -= off[8] * y[6]; acc -= off[9] * y[7]; acc -= off[10] * y[8]; acc -= off[11] * y[9]; acc -= off[12] * y[10]; y[11] = acc; }
+    y[11] *= 1.0 / A[15];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 12; ++j) x[col_order_turn[j]] = y[j];
+}
 
 const kinegen_model rssr_dual_quaternion_turn = {
     .layout = &rssr_dual_quaternion_layout, .case_name = "turn",
@@ -705,6 +747,7 @@ const kinegen_model rssr_dual_quaternion_turn = {
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 16, .n_diag = 16, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 13, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
+    .solve = solve_turn,
     .work_doubles = RSSR_DUAL_QUATERNION_WORK_DOUBLES_TURN, .work_ints = RSSR_DUAL_QUATERNION_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

@@ -699,6 +699,76 @@ static const int diag_slot_turn[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 19, 20
 static const int off_start_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 10, 10};
 static const int off_col_turn[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
 static const int off_value_turn[] = {22, 23, 24, 25, 26, 27, 28, 29, 30, 31};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_turn) */
+static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    y[5] = b[11];
+    y[6] = b[13];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[5] -= A[5] * y[3];
+    y[6] -= A[6] * y[3];
+    y[5] -= A[9] * y[4];
+    y[6] -= A[10] * y[4];
+    y[6] -= A[14] * y[5];
+    y[6] *= 1.0 / A[18];
+    y[3] -= A[15] * y[6];
+    y[4] -= A[16] * y[6];
+    y[5] -= A[17] * y[6];
+    y[5] *= 1.0 / A[13];
+    y[3] -= A[11] * y[5];
+    y[4] -= A[12] * y[5];
+    y[4] *= 1.0 / A[8];
+    y[3] -= A[7] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[7] = b[5];
+    y[7] *= 1.0 / A[19];
+    y[8] = b[6];
+    y[8] *= 1.0 / A[20];
+    y[9] = b[7];
+    y[9] *= 1.0 / A[21];
+    y[10] = b[8];
+    y[11] = b[9];
+    { double acc = b[10]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; acc -= off[4] * y[4]; acc -= off[5] * y[5]; acc -= off[6] * y[6]; acc -= off[7] * y[7]; acc -= off[8] * y[8]; acc -= off[9] * y[9]; y[12] = acc; }
+    y[13] = b[12];
+    { int p = 10 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    { int p = 10 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
+    { int p = 10 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 10 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    y[11] -= A[23] * y[10];
+    y[12] -= A[24] * y[10];
+    y[13] -= A[25] * y[10];
+    y[12] -= A[28] * y[11];
+    y[13] -= A[29] * y[11];
+    y[13] -= A[33] * y[12];
+    y[13] *= 1.0 / A[37];
+    y[10] -= A[34] * y[13];
+    y[11] -= A[35] * y[13];
+    y[12] -= A[36] * y[13];
+    y[12] *= 1.0 / A[32];
+    y[10] -= A[30] * y[12];
+    y[11] -= A[31] * y[12];
+    y[11] *= 1.0 / A[27];
+    y[10] -= A[26] * y[11];
+    y[10] *= 1.0 / A[22];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 14; ++j) x[col_order_turn[j]] = y[j];
+}
 
 const kinegen_model rssr_euler_parameters_turn = {
     .layout = &rssr_euler_parameters_layout, .case_name = "turn",
@@ -711,6 +781,7 @@ const kinegen_model rssr_euler_parameters_turn = {
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 38, .n_diag = 36, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 10, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
+    .solve = solve_turn,
     .work_doubles = RSSR_EULER_PARAMETERS_WORK_DOUBLES_TURN, .work_ints = RSSR_EULER_PARAMETERS_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

@@ -1321,6 +1321,259 @@ static const int diag_slot_run[] = {32, 36, 40, 44, 33, 37, 41, 45, 34, 38, 42, 
 static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 52, 56, 60, 64, 64, 64, 68};
 static const int off_col_run[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 8, 9, 10, 11, 4, 5, 6, 7, 4, 5, 6, 7, 4, 5, 6, 7, 4, 5, 6, 7, 4, 5, 6, 7, 4, 5, 6, 7, 4, 5, 6, 7};
 static const int off_value_run[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 171, 170, 169, 168, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 88, 89, 91, 90, 104, 105, 107, 106, 120, 121, 123, 122, 132, 133, 135, 134, 144, 145, 147, 146, 152, 153, 155, 154, 192, 193, 195, 194};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_run) */
+static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[3];
+    y[1] = b[4];
+    y[2] = b[17];
+    y[3] = b[23];
+    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
+    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
+    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
+    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    y[1] -= A[1] * y[0];
+    y[2] -= A[2] * y[0];
+    y[3] -= A[3] * y[0];
+    y[2] -= A[6] * y[1];
+    y[3] -= A[7] * y[1];
+    y[3] -= A[11] * y[2];
+    y[3] *= 1.0 / A[15];
+    y[0] -= A[12] * y[3];
+    y[1] -= A[13] * y[3];
+    y[2] -= A[14] * y[3];
+    y[2] *= 1.0 / A[10];
+    y[0] -= A[8] * y[2];
+    y[1] -= A[9] * y[2];
+    y[1] *= 1.0 / A[5];
+    y[0] -= A[4] * y[1];
+    y[0] *= 1.0 / A[0];
+    y[4] = b[12];
+    y[5] = b[13];
+    y[6] = b[16];
+    y[7] = b[21];
+    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    y[5] -= A[17] * y[4];
+    y[6] -= A[18] * y[4];
+    y[7] -= A[19] * y[4];
+    y[6] -= A[22] * y[5];
+    y[7] -= A[23] * y[5];
+    y[7] -= A[27] * y[6];
+    y[7] *= 1.0 / A[31];
+    y[4] -= A[28] * y[7];
+    y[5] -= A[29] * y[7];
+    y[6] -= A[30] * y[7];
+    y[6] *= 1.0 / A[26];
+    y[4] -= A[24] * y[6];
+    y[5] -= A[25] * y[6];
+    y[5] *= 1.0 / A[21];
+    y[4] -= A[20] * y[5];
+    y[4] *= 1.0 / A[16];
+    { double acc = b[0]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; y[8] = acc; }
+    { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[9] = acc; }
+    { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[10] = acc; }
+    { double acc = b[18]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[11] = acc; }
+    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
+    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
+    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
+    y[9] -= A[33] * y[8];
+    y[10] -= A[34] * y[8];
+    y[11] -= A[35] * y[8];
+    y[10] -= A[38] * y[9];
+    y[11] -= A[39] * y[9];
+    y[11] -= A[43] * y[10];
+    y[11] *= 1.0 / A[47];
+    y[8] -= A[44] * y[11];
+    y[9] -= A[45] * y[11];
+    y[10] -= A[46] * y[11];
+    y[10] *= 1.0 / A[42];
+    y[8] -= A[40] * y[10];
+    y[9] -= A[41] * y[10];
+    y[9] *= 1.0 / A[37];
+    y[8] -= A[36] * y[9];
+    y[8] *= 1.0 / A[32];
+}
+static void solve_run_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    { double acc = b[5]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[8]; acc -= off[21] * y[9]; acc -= off[22] * y[10]; acc -= off[23] * y[11]; y[12] = acc; }
+    { double acc = b[6]; acc -= off[24] * y[0]; acc -= off[25] * y[1]; acc -= off[26] * y[2]; acc -= off[27] * y[3]; acc -= off[28] * y[8]; acc -= off[29] * y[9]; acc -= off[30] * y[10]; acc -= off[31] * y[11]; y[13] = acc; }
+    { double acc = b[7]; acc -= off[32] * y[0]; acc -= off[33] * y[1]; acc -= off[34] * y[2]; acc -= off[35] * y[3]; acc -= off[36] * y[8]; acc -= off[37] * y[9]; acc -= off[38] * y[10]; acc -= off[39] * y[11]; y[14] = acc; }
+    { double acc = b[8]; acc -= off[40] * y[4]; acc -= off[41] * y[5]; acc -= off[42] * y[6]; acc -= off[43] * y[7]; y[15] = acc; }
+    { double acc = b[9]; acc -= off[44] * y[4]; acc -= off[45] * y[5]; acc -= off[46] * y[6]; acc -= off[47] * y[7]; y[16] = acc; }
+    { double acc = b[10]; acc -= off[48] * y[4]; acc -= off[49] * y[5]; acc -= off[50] * y[6]; acc -= off[51] * y[7]; y[17] = acc; }
+    { double acc = b[11]; acc -= off[52] * y[4]; acc -= off[53] * y[5]; acc -= off[54] * y[6]; acc -= off[55] * y[7]; y[18] = acc; }
+    { double acc = b[14]; acc -= off[56] * y[4]; acc -= off[57] * y[5]; acc -= off[58] * y[6]; acc -= off[59] * y[7]; y[19] = acc; }
+    { double acc = b[15]; acc -= off[60] * y[4]; acc -= off[61] * y[5]; acc -= off[62] * y[6]; acc -= off[63] * y[7]; y[20] = acc; }
+    y[21] = b[19];
+    y[22] = b[20];
+    { double acc = b[22]; acc -= off[64] * y[4]; acc -= off[65] * y[5]; acc -= off[66] * y[6]; acc -= off[67] * y[7]; y[23] = acc; }
+    { int p = 12 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 12 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 12 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 12 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 12 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 12 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { int p = 12 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
+    { int p = 12 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
+    { int p = 12 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
+    { int p = 12 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
+    { int p = 12 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
+    { int p = 12 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
+    y[13] -= A[49] * y[12];
+    y[14] -= A[50] * y[12];
+    y[15] -= A[51] * y[12];
+    y[16] -= A[52] * y[12];
+    y[17] -= A[53] * y[12];
+    y[18] -= A[54] * y[12];
+    y[19] -= A[55] * y[12];
+    y[20] -= A[56] * y[12];
+    y[21] -= A[57] * y[12];
+    y[22] -= A[58] * y[12];
+    y[23] -= A[59] * y[12];
+    y[14] -= A[62] * y[13];
+    y[15] -= A[63] * y[13];
+    y[16] -= A[64] * y[13];
+    y[17] -= A[65] * y[13];
+    y[18] -= A[66] * y[13];
+    y[19] -= A[67] * y[13];
+    y[20] -= A[68] * y[13];
+    y[21] -= A[69] * y[13];
+    y[22] -= A[70] * y[13];
+    y[23] -= A[71] * y[13];
+    y[15] -= A[75] * y[14];
+    y[16] -= A[76] * y[14];
+    y[17] -= A[77] * y[14];
+    y[18] -= A[78] * y[14];
+    y[19] -= A[79] * y[14];
+    y[20] -= A[80] * y[14];
+    y[21] -= A[81] * y[14];
+    y[22] -= A[82] * y[14];
+    y[23] -= A[83] * y[14];
+    y[16] -= A[88] * y[15];
+    y[17] -= A[89] * y[15];
+    y[18] -= A[90] * y[15];
+    y[19] -= A[91] * y[15];
+    y[20] -= A[92] * y[15];
+    y[21] -= A[93] * y[15];
+    y[22] -= A[94] * y[15];
+    y[23] -= A[95] * y[15];
+    y[17] -= A[101] * y[16];
+    y[18] -= A[102] * y[16];
+    y[19] -= A[103] * y[16];
+    y[20] -= A[104] * y[16];
+    y[21] -= A[105] * y[16];
+    y[22] -= A[106] * y[16];
+    y[23] -= A[107] * y[16];
+    y[18] -= A[114] * y[17];
+    y[19] -= A[115] * y[17];
+    y[20] -= A[116] * y[17];
+    y[21] -= A[117] * y[17];
+    y[22] -= A[118] * y[17];
+    y[23] -= A[119] * y[17];
+    y[19] -= A[127] * y[18];
+    y[20] -= A[128] * y[18];
+    y[21] -= A[129] * y[18];
+    y[22] -= A[130] * y[18];
+    y[23] -= A[131] * y[18];
+    y[20] -= A[140] * y[19];
+    y[21] -= A[141] * y[19];
+    y[22] -= A[142] * y[19];
+    y[23] -= A[143] * y[19];
+    y[21] -= A[153] * y[20];
+    y[22] -= A[154] * y[20];
+    y[23] -= A[155] * y[20];
+    y[22] -= A[166] * y[21];
+    y[23] -= A[167] * y[21];
+    y[23] -= A[179] * y[22];
+    y[23] *= 1.0 / A[191];
+    y[12] -= A[180] * y[23];
+    y[13] -= A[181] * y[23];
+    y[14] -= A[182] * y[23];
+    y[15] -= A[183] * y[23];
+    y[16] -= A[184] * y[23];
+    y[17] -= A[185] * y[23];
+    y[18] -= A[186] * y[23];
+    y[19] -= A[187] * y[23];
+    y[20] -= A[188] * y[23];
+    y[21] -= A[189] * y[23];
+    y[22] -= A[190] * y[23];
+    y[22] *= 1.0 / A[178];
+    y[12] -= A[168] * y[22];
+    y[13] -= A[169] * y[22];
+    y[14] -= A[170] * y[22];
+    y[15] -= A[171] * y[22];
+    y[16] -= A[172] * y[22];
+    y[17] -= A[173] * y[22];
+    y[18] -= A[174] * y[22];
+    y[19] -= A[175] * y[22];
+    y[20] -= A[176] * y[22];
+    y[21] -= A[177] * y[22];
+    y[21] *= 1.0 / A[165];
+    y[12] -= A[156] * y[21];
+    y[13] -= A[157] * y[21];
+    y[14] -= A[158] * y[21];
+    y[15] -= A[159] * y[21];
+    y[16] -= A[160] * y[21];
+    y[17] -= A[161] * y[21];
+    y[18] -= A[162] * y[21];
+    y[19] -= A[163] * y[21];
+    y[20] -= A[164] * y[21];
+    y[20] *= 1.0 / A[152];
+    y[12] -= A[144] * y[20];
+    y[13] -= A[145] * y[20];
+    y[14] -= A[146] * y[20];
+    y[15] -= A[147] * y[20];
+    y[16] -= A[148] * y[20];
+    y[17] -= A[149] * y[20];
+    y[18] -= A[150] * y[20];
+    y[19] -= A[151] * y[20];
+    y[19] *= 1.0 / A[139];
+    y[12] -= A[132] * y[19];
+    y[13] -= A[133] * y[19];
+    y[14] -= A[134] * y[19];
+    y[15] -= A[135] * y[19];
+    y[16] -= A[136] * y[19];
+    y[17] -= A[137] * y[19];
+    y[18] -= A[138] * y[19];
+    y[18] *= 1.0 / A[126];
+    y[12] -= A[120] * y[18];
+    y[13] -= A[121] * y[18];
+    y[14] -= A[122] * y[18];
+    y[15] -= A[123] * y[18];
+    y[16] -= A[124] * y[18];
+    y[17] -= A[125] * y[18];
+    y[17] *= 1.0 / A[113];
+    y[12] -= A[108] * y[17];
+    y[13] -= A[109] * y[17];
+    y[14] -= A[110] * y[17];
+    y[15] -= A[111] * y[17];
+    y[16] -= A[112] * y[17];
+    y[16] *= 1.0 / A[100];
+    y[12] -= A[96] * y[16];
+    y[13] -= A[97] * y[16];
+    y[14] -= A[98] * y[16];
+    y[15] -= A[99] * y[16];
+    y[15] *= 1.0 / A[87];
+    y[12] -= A[84] * y[15];
+    y[13] -= A[85] * y[15];
+    y[14] -= A[86] * y[15];
+    y[14] *= 1.0 / A[74];
+    y[12] -= A[72] * y[14];
+    y[13] -= A[73] * y[14];
+    y[13] *= 1.0 / A[61];
+    y[12] -= A[60] * y[13];
+    y[12] *= 1.0 / A[48];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_run_0(A, off, piv, b, y);
+    solve_run_1(A, off, piv, b, y);
+    for (int j = 0; j < 24; ++j) x[col_order_run[j]] = y[j];
+}
 
 const kinegen_model slider_crank_dual_euler_parameters_run = {
     .layout = &slider_crank_dual_euler_parameters_layout, .case_name = "run",
@@ -1333,6 +1586,7 @@ const kinegen_model slider_crank_dual_euler_parameters_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 192, .n_diag = 134, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 68, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
+    .solve = solve_run,
     .work_doubles = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -1352,6 +1606,355 @@ static const int diag_slot_dead_centre[] = {32, 224, 96, 80, 112, 48, 64, 240, 3
 static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 16, 16, 16, 16, 16, 16, 16, 16, 24, 32, 40, 44, 44, 44, 44, 44};
 static const int off_col_dead_centre[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3};
 static const int off_value_dead_centre[] = {144, 145, 147, 146, 152, 153, 155, 154, 192, 193, 195, 194, 200, 201, 203, 202, 88, 89, 91, 90, 95, 94, 92, 93, 104, 105, 107, 106, 111, 110, 108, 109, 120, 121, 123, 122, 127, 126, 124, 125, 132, 133, 135, 134};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_dead_centre) */
+static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[12];
+    y[1] = b[13];
+    y[2] = b[16];
+    y[3] = b[21];
+    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
+    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
+    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
+    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    y[1] -= A[1] * y[0];
+    y[2] -= A[2] * y[0];
+    y[3] -= A[3] * y[0];
+    y[2] -= A[6] * y[1];
+    y[3] -= A[7] * y[1];
+    y[3] -= A[11] * y[2];
+    y[3] *= 1.0 / A[15];
+    y[0] -= A[12] * y[3];
+    y[1] -= A[13] * y[3];
+    y[2] -= A[14] * y[3];
+    y[2] *= 1.0 / A[10];
+    y[0] -= A[8] * y[2];
+    y[1] -= A[9] * y[2];
+    y[1] *= 1.0 / A[5];
+    y[0] -= A[4] * y[1];
+    y[0] *= 1.0 / A[0];
+    { double acc = b[14]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; y[4] = acc; }
+    { double acc = b[15]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
+    { double acc = b[22]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
+    { double acc = b[23]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
+    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    y[5] -= A[17] * y[4];
+    y[6] -= A[18] * y[4];
+    y[7] -= A[19] * y[4];
+    y[6] -= A[22] * y[5];
+    y[7] -= A[23] * y[5];
+    y[7] -= A[27] * y[6];
+    y[7] *= 1.0 / A[31];
+    y[4] -= A[28] * y[7];
+    y[5] -= A[29] * y[7];
+    y[6] -= A[30] * y[7];
+    y[6] *= 1.0 / A[26];
+    y[4] -= A[24] * y[6];
+    y[5] -= A[25] * y[6];
+    y[5] *= 1.0 / A[21];
+    y[4] -= A[20] * y[5];
+    y[4] *= 1.0 / A[16];
+}
+static void solve_dead_centre_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[8] = b[0];
+    y[9] = b[1];
+    y[10] = b[2];
+    y[11] = b[3];
+    y[12] = b[4];
+    y[13] = b[5];
+    y[14] = b[6];
+    y[15] = b[7];
+    { double acc = b[8]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[4]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[7]; y[16] = acc; }
+    { double acc = b[9]; acc -= off[24] * y[0]; acc -= off[25] * y[1]; acc -= off[26] * y[2]; acc -= off[27] * y[3]; acc -= off[28] * y[4]; acc -= off[29] * y[5]; acc -= off[30] * y[6]; acc -= off[31] * y[7]; y[17] = acc; }
+    { double acc = b[10]; acc -= off[32] * y[0]; acc -= off[33] * y[1]; acc -= off[34] * y[2]; acc -= off[35] * y[3]; acc -= off[36] * y[4]; acc -= off[37] * y[5]; acc -= off[38] * y[6]; acc -= off[39] * y[7]; y[18] = acc; }
+    { double acc = b[11]; acc -= off[40] * y[0]; acc -= off[41] * y[1]; acc -= off[42] * y[2]; acc -= off[43] * y[3]; y[19] = acc; }
+    y[20] = b[17];
+    y[21] = b[18];
+    y[22] = b[19];
+    y[23] = b[20];
+    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
+    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
+    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
+    { int p = 8 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 8 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 8 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 8 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 8 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 8 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { int p = 8 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
+    { int p = 8 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
+    { int p = 8 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
+    { int p = 8 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
+    { int p = 8 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
+    { int p = 8 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
+    y[9] -= A[33] * y[8];
+    y[10] -= A[34] * y[8];
+    y[11] -= A[35] * y[8];
+    y[12] -= A[36] * y[8];
+    y[13] -= A[37] * y[8];
+    y[14] -= A[38] * y[8];
+    y[15] -= A[39] * y[8];
+    y[16] -= A[40] * y[8];
+    y[17] -= A[41] * y[8];
+    y[18] -= A[42] * y[8];
+    y[19] -= A[43] * y[8];
+    y[20] -= A[44] * y[8];
+    y[21] -= A[45] * y[8];
+    y[22] -= A[46] * y[8];
+    y[23] -= A[47] * y[8];
+    y[10] -= A[50] * y[9];
+    y[11] -= A[51] * y[9];
+    y[12] -= A[52] * y[9];
+    y[13] -= A[53] * y[9];
+    y[14] -= A[54] * y[9];
+    y[15] -= A[55] * y[9];
+    y[16] -= A[56] * y[9];
+    y[17] -= A[57] * y[9];
+    y[18] -= A[58] * y[9];
+    y[19] -= A[59] * y[9];
+    y[20] -= A[60] * y[9];
+    y[21] -= A[61] * y[9];
+    y[22] -= A[62] * y[9];
+    y[23] -= A[63] * y[9];
+    y[11] -= A[67] * y[10];
+    y[12] -= A[68] * y[10];
+    y[13] -= A[69] * y[10];
+    y[14] -= A[70] * y[10];
+    y[15] -= A[71] * y[10];
+    y[16] -= A[72] * y[10];
+    y[17] -= A[73] * y[10];
+    y[18] -= A[74] * y[10];
+    y[19] -= A[75] * y[10];
+    y[20] -= A[76] * y[10];
+    y[21] -= A[77] * y[10];
+    y[22] -= A[78] * y[10];
+    y[23] -= A[79] * y[10];
+    y[12] -= A[84] * y[11];
+    y[13] -= A[85] * y[11];
+    y[14] -= A[86] * y[11];
+    y[15] -= A[87] * y[11];
+    y[16] -= A[88] * y[11];
+    y[17] -= A[89] * y[11];
+    y[18] -= A[90] * y[11];
+    y[19] -= A[91] * y[11];
+    y[20] -= A[92] * y[11];
+    y[21] -= A[93] * y[11];
+    y[22] -= A[94] * y[11];
+    y[23] -= A[95] * y[11];
+    y[13] -= A[101] * y[12];
+    y[14] -= A[102] * y[12];
+    y[15] -= A[103] * y[12];
+    y[16] -= A[104] * y[12];
+    y[17] -= A[105] * y[12];
+    y[18] -= A[106] * y[12];
+    y[19] -= A[107] * y[12];
+    y[20] -= A[108] * y[12];
+    y[21] -= A[109] * y[12];
+    y[22] -= A[110] * y[12];
+    y[23] -= A[111] * y[12];
+    y[14] -= A[118] * y[13];
+    y[15] -= A[119] * y[13];
+    y[16] -= A[120] * y[13];
+    y[17] -= A[121] * y[13];
+    y[18] -= A[122] * y[13];
+    y[19] -= A[123] * y[13];
+    y[20] -= A[124] * y[13];
+    y[21] -= A[125] * y[13];
+    y[22] -= A[126] * y[13];
+    y[23] -= A[127] * y[13];
+    y[15] -= A[135] * y[14];
+    y[16] -= A[136] * y[14];
+    y[17] -= A[137] * y[14];
+    y[18] -= A[138] * y[14];
+    y[19] -= A[139] * y[14];
+    y[20] -= A[140] * y[14];
+    y[21] -= A[141] * y[14];
+    y[22] -= A[142] * y[14];
+    y[23] -= A[143] * y[14];
+    y[16] -= A[152] * y[15];
+    y[17] -= A[153] * y[15];
+    y[18] -= A[154] * y[15];
+    y[19] -= A[155] * y[15];
+    y[20] -= A[156] * y[15];
+    y[21] -= A[157] * y[15];
+    y[22] -= A[158] * y[15];
+    y[23] -= A[159] * y[15];
+    y[17] -= A[169] * y[16];
+    y[18] -= A[170] * y[16];
+    y[19] -= A[171] * y[16];
+    y[20] -= A[172] * y[16];
+    y[21] -= A[173] * y[16];
+    y[22] -= A[174] * y[16];
+    y[23] -= A[175] * y[16];
+    y[18] -= A[186] * y[17];
+    y[19] -= A[187] * y[17];
+    y[20] -= A[188] * y[17];
+    y[21] -= A[189] * y[17];
+    y[22] -= A[190] * y[17];
+    y[23] -= A[191] * y[17];
+    y[19] -= A[203] * y[18];
+    y[20] -= A[204] * y[18];
+    y[21] -= A[205] * y[18];
+    y[22] -= A[206] * y[18];
+    y[23] -= A[207] * y[18];
+    y[20] -= A[220] * y[19];
+    y[21] -= A[221] * y[19];
+    y[22] -= A[222] * y[19];
+    y[23] -= A[223] * y[19];
+    y[21] -= A[237] * y[20];
+    y[22] -= A[238] * y[20];
+    y[23] -= A[239] * y[20];
+    y[22] -= A[254] * y[21];
+    y[23] -= A[255] * y[21];
+    y[23] -= A[271] * y[22];
+    y[23] *= 1.0 / A[287];
+    y[8] -= A[272] * y[23];
+    y[9] -= A[273] * y[23];
+    y[10] -= A[274] * y[23];
+    y[11] -= A[275] * y[23];
+    y[12] -= A[276] * y[23];
+    y[13] -= A[277] * y[23];
+    y[14] -= A[278] * y[23];
+    y[15] -= A[279] * y[23];
+    y[16] -= A[280] * y[23];
+    y[17] -= A[281] * y[23];
+    y[18] -= A[282] * y[23];
+    y[19] -= A[283] * y[23];
+    y[20] -= A[284] * y[23];
+    y[21] -= A[285] * y[23];
+    y[22] -= A[286] * y[23];
+    y[22] *= 1.0 / A[270];
+    y[8] -= A[256] * y[22];
+    y[9] -= A[257] * y[22];
+    y[10] -= A[258] * y[22];
+    y[11] -= A[259] * y[22];
+    y[12] -= A[260] * y[22];
+    y[13] -= A[261] * y[22];
+    y[14] -= A[262] * y[22];
+    y[15] -= A[263] * y[22];
+    y[16] -= A[264] * y[22];
+    y[17] -= A[265] * y[22];
+    y[18] -= A[266] * y[22];
+    y[19] -= A[267] * y[22];
+    y[20] -= A[268] * y[22];
+    y[21] -= A[269] * y[22];
+    y[21] *= 1.0 / A[253];
+    y[8] -= A[240] * y[21];
+    y[9] -= A[241] * y[21];
+    y[10] -= A[242] * y[21];
+    y[11] -= A[243] * y[21];
+    y[12] -= A[244] * y[21];
+    y[13] -= A[245] * y[21];
+    y[14] -= A[246] * y[21];
+    y[15] -= A[247] * y[21];
+    y[16] -= A[248] * y[21];
+    y[17] -= A[249] * y[21];
+    y[18] -= A[250] * y[21];
+    y[19] -= A[251] * y[21];
+    y[20] -= A[252] * y[21];
+    y[20] *= 1.0 / A[236];
+    y[8] -= A[224] * y[20];
+    y[9] -= A[225] * y[20];
+    y[10] -= A[226] * y[20];
+    y[11] -= A[227] * y[20];
+    y[12] -= A[228] * y[20];
+    y[13] -= A[229] * y[20];
+    y[14] -= A[230] * y[20];
+    y[15] -= A[231] * y[20];
+    y[16] -= A[232] * y[20];
+    y[17] -= A[233] * y[20];
+    y[18] -= A[234] * y[20];
+    y[19] -= A[235] * y[20];
+    y[19] *= 1.0 / A[219];
+    y[8] -= A[208] * y[19];
+    y[9] -= A[209] * y[19];
+    y[10] -= A[210] * y[19];
+    y[11] -= A[211] * y[19];
+    y[12] -= A[212] * y[19];
+    y[13] -= A[213] * y[19];
+    y[14] -= A[214] * y[19];
+    y[15] -= A[215] * y[19];
+    y[16] -= A[216] * y[19];
+    y[17] -= A[217] * y[19];
+    y[18] -= A[218] * y[19];
+    y[18] *= 1.0 / A[202];
+    y[8] -= A[192] * y[18];
+    y[9] -= A[193] * y[18];
+    y[10] -= A[194] * y[18];
+    y[11] -= A[195] * y[18];
+    y[12] -= A[196] * y[18];
+    y[13] -= A[197] * y[18];
+    y[14] -= A[198] * y[18];
+    y[15] -= A[199] * y[18];
+    y[16] -= A[200] * y[18];
+    y[17] -= A[201] * y[18];
+    y[17] *= 1.0 / A[185];
+    y[8] -= A[176] * y[17];
+    y[9] -= A[177] * y[17];
+    y[10] -= A[178] * y[17];
+    y[11] -= A[179] * y[17];
+    y[12] -= A[180] * y[17];
+    y[13] -= A[181] * y[17];
+    y[14] -= A[182] * y[17];
+    y[15] -= A[183] * y[17];
+    y[16] -= A[184] * y[17];
+    y[16] *= 1.0 / A[168];
+    y[8] -= A[160] * y[16];
+    y[9] -= A[161] * y[16];
+    y[10] -= A[162] * y[16];
+    y[11] -= A[163] * y[16];
+    y[12] -= A[164] * y[16];
+    y[13] -= A[165] * y[16];
+    y[14] -= A[166] * y[16];
+    y[15] -= A[167] * y[16];
+    y[15] *= 1.0 / A[151];
+    y[8] -= A[144] * y[15];
+    y[9] -= A[145] * y[15];
+    y[10] -= A[146] * y[15];
+    y[11] -= A[147] * y[15];
+    y[12] -= A[148] * y[15];
+    y[13] -= A[149] * y[15];
+    y[14] -= A[150] * y[15];
+    y[14] *= 1.0 / A[134];
+    y[8] -= A[128] * y[14];
+    y[9] -= A[129] * y[14];
+    y[10] -= A[130] * y[14];
+    y[11] -= A[131] * y[14];
+    y[12] -= A[132] * y[14];
+    y[13] -= A[133] * y[14];
+    y[13] *= 1.0 / A[117];
+    y[8] -= A[112] * y[13];
+    y[9] -= A[113] * y[13];
+    y[10] -= A[114] * y[13];
+    y[11] -= A[115] * y[13];
+    y[12] -= A[116] * y[13];
+    y[12] *= 1.0 / A[100];
+    y[8] -= A[96] * y[12];
+    y[9] -= A[97] * y[12];
+    y[10] -= A[98] * y[12];
+    y[11] -= A[99] * y[12];
+    y[11] *= 1.0 / A[83];
+    y[8] -= A[80] * y[11];
+    y[9] -= A[81] * y[11];
+    y[10] -= A[82] * y[11];
+    y[10] *= 1.0 / A[66];
+    y[8] -= A[64] * y[10];
+    y[9] -= A[65] * y[10];
+    y[9] *= 1.0 / A[49];
+    y[8] -= A[48] * y[9];
+    y[8] *= 1.0 / A[32];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_dead_centre_0(A, off, piv, b, y);
+    solve_dead_centre_1(A, off, piv, b, y);
+    for (int j = 0; j < 24; ++j) x[col_order_dead_centre[j]] = y[j];
+}
 
 const kinegen_model slider_crank_dual_euler_parameters_dead_centre = {
     .layout = &slider_crank_dual_euler_parameters_layout, .case_name = "dead_centre",
@@ -1364,6 +1967,7 @@ const kinegen_model slider_crank_dual_euler_parameters_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 288, .n_diag = 164, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 44, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
+    .solve = solve_dead_centre,
     .work_doubles = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

@@ -942,6 +942,96 @@ static const int diag_slot_run[] = {0, 1, 2, 3, 5, 4, 6, 14, 15, 12, 16, 34, 40,
 static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 2, 5, 6, 9, 12, 13, 14, 15, 18, 21, 24};
 static const int off_col_run[] = {3, 4, 2, 3, 4, 5, 0, 4, 7, 1, 3, 7, 10, 11, 8, 5, 6, 9, 5, 6, 9, 5, 6, 9};
 static const int off_value_run[] = {53, 54, 17, 15, 16, 39, 9, 7, 8, 13, 11, 12, 21, 25, 29, 34, 36, 35, 41, 43, 42, 46, 48, 47};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_run) */
+static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[4] *= 1.0 / A[6];
+    y[3] -= A[5] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[5] = b[12];
+    y[6] = b[16];
+    { int p = 5 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 5 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[6] -= A[8] * y[5];
+    y[6] *= 1.0 / A[10];
+    y[5] -= A[9] * y[6];
+    y[5] *= 1.0 / A[7];
+    { double acc = b[17]; acc -= off[0] * y[3]; acc -= off[1] * y[4]; y[7] = acc; }
+    y[7] *= 1.0 / A[11];
+    { double acc = b[7]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; acc -= off[4] * y[4]; y[8] = acc; }
+    y[8] *= 1.0 / A[12];
+    { double acc = b[13]; acc -= off[5] * y[5]; y[9] = acc; }
+    y[9] *= 1.0 / A[13];
+    { double acc = b[5]; acc -= off[6] * y[0]; acc -= off[7] * y[4]; acc -= off[8] * y[7]; y[10] = acc; }
+    y[10] *= 1.0 / A[14];
+    { double acc = b[6]; acc -= off[9] * y[1]; acc -= off[10] * y[3]; acc -= off[11] * y[7]; y[11] = acc; }
+    y[11] *= 1.0 / A[15];
+    { double acc = b[8]; acc -= off[12] * y[10]; y[12] = acc; }
+    { double acc = b[9]; acc -= off[13] * y[11]; y[13] = acc; }
+    { double acc = b[10]; acc -= off[14] * y[8]; y[14] = acc; }
+    { double acc = b[11]; acc -= off[15] * y[5]; acc -= off[16] * y[6]; acc -= off[17] * y[9]; y[15] = acc; }
+    { double acc = b[14]; acc -= off[18] * y[5]; acc -= off[19] * y[6]; acc -= off[20] * y[9]; y[16] = acc; }
+    { double acc = b[15]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[9]; y[17] = acc; }
+    { int p = 12 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 12 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 12 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 12 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 12 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 12 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    y[13] -= A[17] * y[12];
+    y[14] -= A[18] * y[12];
+    y[15] -= A[19] * y[12];
+    y[16] -= A[20] * y[12];
+    y[17] -= A[21] * y[12];
+    y[14] -= A[24] * y[13];
+    y[15] -= A[25] * y[13];
+    y[16] -= A[26] * y[13];
+    y[17] -= A[27] * y[13];
+    y[15] -= A[31] * y[14];
+    y[16] -= A[32] * y[14];
+    y[17] -= A[33] * y[14];
+    y[16] -= A[38] * y[15];
+    y[17] -= A[39] * y[15];
+    y[17] -= A[45] * y[16];
+    y[17] *= 1.0 / A[51];
+    y[12] -= A[46] * y[17];
+    y[13] -= A[47] * y[17];
+    y[14] -= A[48] * y[17];
+    y[15] -= A[49] * y[17];
+    y[16] -= A[50] * y[17];
+    y[16] *= 1.0 / A[44];
+    y[12] -= A[40] * y[16];
+    y[13] -= A[41] * y[16];
+    y[14] -= A[42] * y[16];
+    y[15] -= A[43] * y[16];
+    y[15] *= 1.0 / A[37];
+    y[12] -= A[34] * y[15];
+    y[13] -= A[35] * y[15];
+    y[14] -= A[36] * y[15];
+    y[14] *= 1.0 / A[30];
+    y[12] -= A[28] * y[14];
+    y[13] -= A[29] * y[14];
+    y[13] *= 1.0 / A[23];
+    y[12] -= A[22] * y[13];
+    y[12] *= 1.0 / A[16];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_run_0(A, off, piv, b, y);
+    for (int j = 0; j < 18; ++j) x[col_order_run[j]] = y[j];
+}
 
 const kinegen_model slider_crank_dual_quaternion_run = {
     .layout = &slider_crank_dual_quaternion_layout, .case_name = "run",
@@ -954,6 +1044,7 @@ const kinegen_model slider_crank_dual_quaternion_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 52, .n_diag = 32, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 24, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
+    .solve = solve_run,
     .work_doubles = SLIDER_CRANK_DUAL_QUATERNION_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_DUAL_QUATERNION_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -973,6 +1064,96 @@ static const int diag_slot_dead_centre[] = {0, 1, 2, 3, 5, 4, 6, 16, 28, 17, 23,
 static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 4, 8, 12, 14, 16, 17, 18, 20, 23};
 static const int off_col_dead_centre[] = {6, 2, 3, 4, 5, 6, 7, 8, 5, 6, 7, 8, 0, 4, 1, 3, 5, 11, 9, 10, 6, 7, 8};
 static const int off_value_dead_centre[] = {39, 17, 15, 16, 44, 41, 43, 42, 49, 46, 48, 47, 9, 7, 13, 11, 22, 26, 29, 30, 34, 36, 35};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_dead_centre) */
+static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[4] *= 1.0 / A[6];
+    y[3] -= A[5] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[5] = b[17];
+    y[5] *= 1.0 / A[7];
+    y[6] = b[12];
+    y[7] = b[16];
+    { int p = 6 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { int p = 6 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    y[7] -= A[9] * y[6];
+    y[7] *= 1.0 / A[11];
+    y[6] -= A[10] * y[7];
+    y[6] *= 1.0 / A[8];
+    { double acc = b[13]; acc -= off[0] * y[6]; y[8] = acc; }
+    y[8] *= 1.0 / A[12];
+    { double acc = b[7]; acc -= off[1] * y[2]; acc -= off[2] * y[3]; acc -= off[3] * y[4]; y[9] = acc; }
+    y[9] *= 1.0 / A[13];
+    { double acc = b[14]; acc -= off[4] * y[5]; acc -= off[5] * y[6]; acc -= off[6] * y[7]; acc -= off[7] * y[8]; y[10] = acc; }
+    y[10] *= 1.0 / A[14];
+    { double acc = b[15]; acc -= off[8] * y[5]; acc -= off[9] * y[6]; acc -= off[10] * y[7]; acc -= off[11] * y[8]; y[11] = acc; }
+    y[11] *= 1.0 / A[15];
+    { double acc = b[5]; acc -= off[12] * y[0]; acc -= off[13] * y[4]; y[12] = acc; }
+    { double acc = b[6]; acc -= off[14] * y[1]; acc -= off[15] * y[3]; y[13] = acc; }
+    { double acc = b[8]; acc -= off[16] * y[5]; y[14] = acc; }
+    { double acc = b[9]; acc -= off[17] * y[11]; y[15] = acc; }
+    { double acc = b[10]; acc -= off[18] * y[9]; acc -= off[19] * y[10]; y[16] = acc; }
+    { double acc = b[11]; acc -= off[20] * y[6]; acc -= off[21] * y[7]; acc -= off[22] * y[8]; y[17] = acc; }
+    { int p = 12 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 12 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 12 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 12 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 12 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 12 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    y[13] -= A[17] * y[12];
+    y[14] -= A[18] * y[12];
+    y[15] -= A[19] * y[12];
+    y[16] -= A[20] * y[12];
+    y[17] -= A[21] * y[12];
+    y[14] -= A[24] * y[13];
+    y[15] -= A[25] * y[13];
+    y[16] -= A[26] * y[13];
+    y[17] -= A[27] * y[13];
+    y[15] -= A[31] * y[14];
+    y[16] -= A[32] * y[14];
+    y[17] -= A[33] * y[14];
+    y[16] -= A[38] * y[15];
+    y[17] -= A[39] * y[15];
+    y[17] -= A[45] * y[16];
+    y[17] *= 1.0 / A[51];
+    y[12] -= A[46] * y[17];
+    y[13] -= A[47] * y[17];
+    y[14] -= A[48] * y[17];
+    y[15] -= A[49] * y[17];
+    y[16] -= A[50] * y[17];
+    y[16] *= 1.0 / A[44];
+    y[12] -= A[40] * y[16];
+    y[13] -= A[41] * y[16];
+    y[14] -= A[42] * y[16];
+    y[15] -= A[43] * y[16];
+    y[15] *= 1.0 / A[37];
+    y[12] -= A[34] * y[15];
+    y[13] -= A[35] * y[15];
+    y[14] -= A[36] * y[15];
+    y[14] *= 1.0 / A[30];
+    y[12] -= A[28] * y[14];
+    y[13] -= A[29] * y[14];
+    y[13] *= 1.0 / A[23];
+    y[12] -= A[22] * y[13];
+    y[12] *= 1.0 / A[16];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_dead_centre_0(A, off, piv, b, y);
+    for (int j = 0; j < 18; ++j) x[col_order_dead_centre[j]] = y[j];
+}
 
 const kinegen_model slider_crank_dual_quaternion_dead_centre = {
     .layout = &slider_crank_dual_quaternion_layout, .case_name = "dead_centre",
@@ -985,6 +1166,7 @@ const kinegen_model slider_crank_dual_quaternion_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 52, .n_diag = 31, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 23, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
+    .solve = solve_dead_centre,
     .work_doubles = SLIDER_CRANK_DUAL_QUATERNION_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_DUAL_QUATERNION_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

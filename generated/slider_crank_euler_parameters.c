@@ -876,6 +876,106 @@ static const int diag_slot_run[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 37, 38,
 static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 8, 13, 15, 17, 21, 21, 24};
 static const int off_col_run[] = {0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 12, 14, 11, 15, 7, 8, 9, 10, 13, 16, 18};
 static const int off_value_run[] = {11, 12, 13, 15, 16, 17, 18, 19, 21, 22, 23, 24, 25, 36, 31, 42, 37, 47, 48, 49, 50, 27, 28, 29};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_run) */
+static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    y[5] = b[17];
+    y[6] = b[20];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[5] -= A[5] * y[3];
+    y[6] -= A[6] * y[3];
+    y[5] -= A[9] * y[4];
+    y[6] -= A[10] * y[4];
+    y[6] -= A[14] * y[5];
+    y[6] *= 1.0 / A[18];
+    y[3] -= A[15] * y[6];
+    y[4] -= A[16] * y[6];
+    y[5] -= A[17] * y[6];
+    y[5] *= 1.0 / A[13];
+    y[3] -= A[11] * y[5];
+    y[4] -= A[12] * y[5];
+    y[4] *= 1.0 / A[8];
+    y[3] -= A[7] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[7] = b[12];
+    y[8] = b[13];
+    y[9] = b[16];
+    y[10] = b[19];
+    { int p = 7 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    { int p = 7 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
+    { int p = 7 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
+    { int p = 7 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    y[8] -= A[20] * y[7];
+    y[9] -= A[21] * y[7];
+    y[10] -= A[22] * y[7];
+    y[9] -= A[25] * y[8];
+    y[10] -= A[26] * y[8];
+    y[10] -= A[30] * y[9];
+    y[10] *= 1.0 / A[34];
+    y[7] -= A[31] * y[10];
+    y[8] -= A[32] * y[10];
+    y[9] -= A[33] * y[10];
+    y[9] *= 1.0 / A[29];
+    y[7] -= A[27] * y[9];
+    y[8] -= A[28] * y[9];
+    y[8] *= 1.0 / A[24];
+    y[7] -= A[23] * y[8];
+    y[7] *= 1.0 / A[19];
+    y[11] = b[15];
+    y[11] *= 1.0 / A[35];
+    y[12] = b[14];
+    y[12] *= 1.0 / A[36];
+    { double acc = b[5]; acc -= off[0] * y[0]; acc -= off[1] * y[3]; acc -= off[2] * y[4]; y[13] = acc; }
+    y[13] *= 1.0 / A[37];
+    { double acc = b[6]; acc -= off[3] * y[1]; acc -= off[4] * y[3]; acc -= off[5] * y[4]; acc -= off[6] * y[5]; acc -= off[7] * y[6]; y[14] = acc; }
+    y[14] *= 1.0 / A[38];
+    { double acc = b[7]; acc -= off[8] * y[2]; acc -= off[9] * y[3]; acc -= off[10] * y[4]; acc -= off[11] * y[5]; acc -= off[12] * y[6]; y[15] = acc; }
+    y[15] *= 1.0 / A[39];
+    { double acc = b[9]; acc -= off[13] * y[12]; acc -= off[14] * y[14]; y[16] = acc; }
+    { double acc = b[10]; acc -= off[15] * y[11]; acc -= off[16] * y[15]; y[17] = acc; }
+    { double acc = b[11]; acc -= off[17] * y[7]; acc -= off[18] * y[8]; acc -= off[19] * y[9]; acc -= off[20] * y[10]; y[18] = acc; }
+    y[19] = b[18];
+    { int p = 16 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 16 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { int p = 16 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
+    { int p = 16 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
+    y[17] -= A[41] * y[16];
+    y[18] -= A[42] * y[16];
+    y[19] -= A[43] * y[16];
+    y[18] -= A[46] * y[17];
+    y[19] -= A[47] * y[17];
+    y[19] -= A[51] * y[18];
+    y[19] *= 1.0 / A[55];
+    y[16] -= A[52] * y[19];
+    y[17] -= A[53] * y[19];
+    y[18] -= A[54] * y[19];
+    y[18] *= 1.0 / A[50];
+    y[16] -= A[48] * y[18];
+    y[17] -= A[49] * y[18];
+    y[17] *= 1.0 / A[45];
+    y[16] -= A[44] * y[17];
+    y[16] *= 1.0 / A[40];
+    { double acc = b[8]; acc -= off[21] * y[13]; acc -= off[22] * y[16]; acc -= off[23] * y[18]; y[20] = acc; }
+    y[20] *= 1.0 / A[56];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_run_0(A, off, piv, b, y);
+    for (int j = 0; j < 21; ++j) x[col_order_run[j]] = y[j];
+}
 
 const kinegen_model slider_crank_euler_parameters_run = {
     .layout = &slider_crank_euler_parameters_layout, .case_name = "run",
@@ -888,6 +988,7 @@ const kinegen_model slider_crank_euler_parameters_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 57, .n_diag = 55, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 24, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
+    .solve = solve_run,
     .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -907,6 +1008,195 @@ static const int diag_slot_dead_centre[] = {0, 1, 2, 22, 33, 55, 121, 23, 34, 56
 static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 10, 10, 10};
 static const int off_col_dead_centre[] = {0, 1, 2, 8, 9, 7, 3, 4, 5, 6};
 static const int off_value_dead_centre[] = {11, 15, 21, 30, 36, 42, 47, 48, 49, 50};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_dead_centre) */
+static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[12];
+    y[4] = b[13];
+    y[5] = b[16];
+    y[6] = b[19];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[5] -= A[5] * y[3];
+    y[6] -= A[6] * y[3];
+    y[5] -= A[9] * y[4];
+    y[6] -= A[10] * y[4];
+    y[6] -= A[14] * y[5];
+    y[6] *= 1.0 / A[18];
+    y[3] -= A[15] * y[6];
+    y[4] -= A[16] * y[6];
+    y[5] -= A[17] * y[6];
+    y[5] *= 1.0 / A[13];
+    y[3] -= A[11] * y[5];
+    y[4] -= A[12] * y[5];
+    y[4] *= 1.0 / A[8];
+    y[3] -= A[7] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[7] = b[15];
+    y[7] *= 1.0 / A[19];
+    y[8] = b[20];
+    y[8] *= 1.0 / A[20];
+    y[9] = b[14];
+    y[9] *= 1.0 / A[21];
+    y[10] = b[3];
+    y[11] = b[4];
+    { double acc = b[5]; acc -= off[0] * y[0]; y[12] = acc; }
+    { double acc = b[6]; acc -= off[1] * y[1]; y[13] = acc; }
+    { double acc = b[7]; acc -= off[2] * y[2]; y[14] = acc; }
+    { double acc = b[8]; acc -= off[3] * y[8]; y[15] = acc; }
+    { double acc = b[9]; acc -= off[4] * y[9]; y[16] = acc; }
+    { double acc = b[10]; acc -= off[5] * y[7]; y[17] = acc; }
+    { double acc = b[11]; acc -= off[6] * y[3]; acc -= off[7] * y[4]; acc -= off[8] * y[5]; acc -= off[9] * y[6]; y[18] = acc; }
+    y[19] = b[17];
+    y[20] = b[18];
+    { int p = 10 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    { int p = 10 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
+    { int p = 10 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 10 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 10 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 10 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 10 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 10 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { int p = 10 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
+    { int p = 10 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
+    { int p = 10 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
+    y[11] -= A[23] * y[10];
+    y[12] -= A[24] * y[10];
+    y[13] -= A[25] * y[10];
+    y[14] -= A[26] * y[10];
+    y[15] -= A[27] * y[10];
+    y[16] -= A[28] * y[10];
+    y[17] -= A[29] * y[10];
+    y[18] -= A[30] * y[10];
+    y[19] -= A[31] * y[10];
+    y[20] -= A[32] * y[10];
+    y[12] -= A[35] * y[11];
+    y[13] -= A[36] * y[11];
+    y[14] -= A[37] * y[11];
+    y[15] -= A[38] * y[11];
+    y[16] -= A[39] * y[11];
+    y[17] -= A[40] * y[11];
+    y[18] -= A[41] * y[11];
+    y[19] -= A[42] * y[11];
+    y[20] -= A[43] * y[11];
+    y[13] -= A[47] * y[12];
+    y[14] -= A[48] * y[12];
+    y[15] -= A[49] * y[12];
+    y[16] -= A[50] * y[12];
+    y[17] -= A[51] * y[12];
+    y[18] -= A[52] * y[12];
+    y[19] -= A[53] * y[12];
+    y[20] -= A[54] * y[12];
+    y[14] -= A[59] * y[13];
+    y[15] -= A[60] * y[13];
+    y[16] -= A[61] * y[13];
+    y[17] -= A[62] * y[13];
+    y[18] -= A[63] * y[13];
+    y[19] -= A[64] * y[13];
+    y[20] -= A[65] * y[13];
+    y[15] -= A[71] * y[14];
+    y[16] -= A[72] * y[14];
+    y[17] -= A[73] * y[14];
+    y[18] -= A[74] * y[14];
+    y[19] -= A[75] * y[14];
+    y[20] -= A[76] * y[14];
+    y[16] -= A[83] * y[15];
+    y[17] -= A[84] * y[15];
+    y[18] -= A[85] * y[15];
+    y[19] -= A[86] * y[15];
+    y[20] -= A[87] * y[15];
+    y[17] -= A[95] * y[16];
+    y[18] -= A[96] * y[16];
+    y[19] -= A[97] * y[16];
+    y[20] -= A[98] * y[16];
+    y[18] -= A[107] * y[17];
+    y[19] -= A[108] * y[17];
+    y[20] -= A[109] * y[17];
+    y[19] -= A[119] * y[18];
+    y[20] -= A[120] * y[18];
+    y[20] -= A[131] * y[19];
+    y[20] *= 1.0 / A[142];
+    y[10] -= A[132] * y[20];
+    y[11] -= A[133] * y[20];
+    y[12] -= A[134] * y[20];
+    y[13] -= A[135] * y[20];
+    y[14] -= A[136] * y[20];
+    y[15] -= A[137] * y[20];
+    y[16] -= A[138] * y[20];
+    y[17] -= A[139] * y[20];
+    y[18] -= A[140] * y[20];
+    y[19] -= A[141] * y[20];
+    y[19] *= 1.0 / A[130];
+    y[10] -= A[121] * y[19];
+    y[11] -= A[122] * y[19];
+    y[12] -= A[123] * y[19];
+    y[13] -= A[124] * y[19];
+    y[14] -= A[125] * y[19];
+    y[15] -= A[126] * y[19];
+    y[16] -= A[127] * y[19];
+    y[17] -= A[128] * y[19];
+    y[18] -= A[129] * y[19];
+    y[18] *= 1.0 / A[118];
+    y[10] -= A[110] * y[18];
+    y[11] -= A[111] * y[18];
+    y[12] -= A[112] * y[18];
+    y[13] -= A[113] * y[18];
+    y[14] -= A[114] * y[18];
+    y[15] -= A[115] * y[18];
+    y[16] -= A[116] * y[18];
+    y[17] -= A[117] * y[18];
+    y[17] *= 1.0 / A[106];
+    y[10] -= A[99] * y[17];
+    y[11] -= A[100] * y[17];
+    y[12] -= A[101] * y[17];
+    y[13] -= A[102] * y[17];
+    y[14] -= A[103] * y[17];
+    y[15] -= A[104] * y[17];
+    y[16] -= A[105] * y[17];
+    y[16] *= 1.0 / A[94];
+    y[10] -= A[88] * y[16];
+    y[11] -= A[89] * y[16];
+    y[12] -= A[90] * y[16];
+    y[13] -= A[91] * y[16];
+    y[14] -= A[92] * y[16];
+    y[15] -= A[93] * y[16];
+    y[15] *= 1.0 / A[82];
+    y[10] -= A[77] * y[15];
+    y[11] -= A[78] * y[15];
+    y[12] -= A[79] * y[15];
+    y[13] -= A[80] * y[15];
+    y[14] -= A[81] * y[15];
+    y[14] *= 1.0 / A[70];
+    y[10] -= A[66] * y[14];
+    y[11] -= A[67] * y[14];
+    y[12] -= A[68] * y[14];
+    y[13] -= A[69] * y[14];
+    y[13] *= 1.0 / A[58];
+    y[10] -= A[55] * y[13];
+    y[11] -= A[56] * y[13];
+    y[12] -= A[57] * y[13];
+    y[12] *= 1.0 / A[46];
+    y[10] -= A[44] * y[12];
+    y[11] -= A[45] * y[12];
+    y[11] *= 1.0 / A[34];
+    y[10] -= A[33] * y[11];
+    y[10] *= 1.0 / A[22];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_dead_centre_0(A, off, piv, b, y);
+    for (int j = 0; j < 21; ++j) x[col_order_dead_centre[j]] = y[j];
+}
 
 const kinegen_model slider_crank_euler_parameters_dead_centre = {
     .layout = &slider_crank_euler_parameters_layout, .case_name = "dead_centre",
@@ -919,6 +1209,7 @@ const kinegen_model slider_crank_euler_parameters_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 143, .n_diag = 68, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 10, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
+    .solve = solve_dead_centre,
     .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

@@ -844,6 +844,69 @@ static const int diag_slot_run[] = {0, 1, 2, 3, 5, 4, 6, 16, 17, 14, 27, 18, 24,
 static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 5, 6, 9, 12, 14, 16, 19, 22};
 static const int off_col_run[] = {3, 4, 2, 3, 4, 6, 0, 4, 9, 1, 3, 9, 8, 13, 7, 10, 5, 6, 11, 12, 15, 16};
 static const int off_value_run[] = {45, 46, 15, 16, 17, 44, 7, 8, 9, 11, 12, 13, 26, 23, 30, 27, 35, 36, 34, 19, 20, 21};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_run) */
+static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[4] *= 1.0 / A[6];
+    y[3] -= A[5] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[5] = b[12];
+    y[6] = b[13];
+    { int p = 5 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
+    { int p = 5 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    y[6] -= A[8] * y[5];
+    y[6] *= 1.0 / A[10];
+    y[5] -= A[9] * y[6];
+    y[5] *= 1.0 / A[7];
+    y[7] = b[15];
+    y[7] *= 1.0 / A[11];
+    y[8] = b[14];
+    y[8] *= 1.0 / A[12];
+    { double acc = b[17]; acc -= off[0] * y[3]; acc -= off[1] * y[4]; y[9] = acc; }
+    y[9] *= 1.0 / A[13];
+    { double acc = b[7]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; acc -= off[4] * y[4]; y[10] = acc; }
+    y[10] *= 1.0 / A[14];
+    { double acc = b[16]; acc -= off[5] * y[6]; y[11] = acc; }
+    y[11] *= 1.0 / A[15];
+    { double acc = b[5]; acc -= off[6] * y[0]; acc -= off[7] * y[4]; acc -= off[8] * y[9]; y[12] = acc; }
+    y[12] *= 1.0 / A[16];
+    { double acc = b[6]; acc -= off[9] * y[1]; acc -= off[10] * y[3]; acc -= off[11] * y[9]; y[13] = acc; }
+    y[13] *= 1.0 / A[17];
+    { double acc = b[9]; acc -= off[12] * y[8]; acc -= off[13] * y[13]; y[14] = acc; }
+    { double acc = b[10]; acc -= off[14] * y[7]; acc -= off[15] * y[10]; y[15] = acc; }
+    { double acc = b[11]; acc -= off[16] * y[5]; acc -= off[17] * y[6]; acc -= off[18] * y[11]; y[16] = acc; }
+    { int p = 14 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 14 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 14 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    y[15] -= A[19] * y[14];
+    y[16] -= A[20] * y[14];
+    y[16] -= A[23] * y[15];
+    y[16] *= 1.0 / A[26];
+    y[14] -= A[24] * y[16];
+    y[15] -= A[25] * y[16];
+    y[15] *= 1.0 / A[22];
+    y[14] -= A[21] * y[15];
+    y[14] *= 1.0 / A[18];
+    { double acc = b[8]; acc -= off[19] * y[12]; acc -= off[20] * y[15]; acc -= off[21] * y[16]; y[17] = acc; }
+    y[17] *= 1.0 / A[27];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_run_0(A, off, piv, b, y);
+    for (int j = 0; j < 18; ++j) x[col_order_run[j]] = y[j];
+}
 
 const kinegen_model slider_crank_quaternion_run = {
     .layout = &slider_crank_quaternion_layout, .case_name = "run",
@@ -856,6 +919,7 @@ const kinegen_model slider_crank_quaternion_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 28, .n_diag = 26, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 22, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
+    .solve = solve_run,
     .work_doubles = SLIDER_CRANK_QUATERNION_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_QUATERNION_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -875,6 +939,96 @@ static const int diag_slot_dead_centre[] = {0, 1, 2, 3, 5, 4, 6, 16, 28, 17, 23,
 static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 4, 6, 8, 9, 10, 12, 15};
 static const int off_col_dead_centre[] = {7, 2, 3, 4, 0, 4, 1, 3, 5, 9, 8, 11, 6, 7, 10};
 static const int off_value_dead_centre[] = {44, 15, 16, 17, 7, 8, 11, 12, 22, 26, 30, 27, 35, 36, 34};
+/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
+ * pieces of consecutive blocks (every case with this plan calls them through solve_dead_centre) */
+static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+    y[0] = b[0];
+    y[0] *= 1.0 / A[0];
+    y[1] = b[1];
+    y[1] *= 1.0 / A[1];
+    y[2] = b[2];
+    y[2] *= 1.0 / A[2];
+    y[3] = b[3];
+    y[4] = b[4];
+    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    y[4] -= A[4] * y[3];
+    y[4] *= 1.0 / A[6];
+    y[3] -= A[5] * y[4];
+    y[3] *= 1.0 / A[3];
+    y[5] = b[17];
+    y[5] *= 1.0 / A[7];
+    y[6] = b[12];
+    y[7] = b[13];
+    { int p = 6 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { int p = 6 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    y[7] -= A[9] * y[6];
+    y[7] *= 1.0 / A[11];
+    y[6] -= A[10] * y[7];
+    y[6] *= 1.0 / A[8];
+    y[8] = b[15];
+    y[8] *= 1.0 / A[12];
+    y[9] = b[14];
+    y[9] *= 1.0 / A[13];
+    { double acc = b[16]; acc -= off[0] * y[7]; y[10] = acc; }
+    y[10] *= 1.0 / A[14];
+    { double acc = b[7]; acc -= off[1] * y[2]; acc -= off[2] * y[3]; acc -= off[3] * y[4]; y[11] = acc; }
+    y[11] *= 1.0 / A[15];
+    { double acc = b[5]; acc -= off[4] * y[0]; acc -= off[5] * y[4]; y[12] = acc; }
+    { double acc = b[6]; acc -= off[6] * y[1]; acc -= off[7] * y[3]; y[13] = acc; }
+    { double acc = b[8]; acc -= off[8] * y[5]; y[14] = acc; }
+    { double acc = b[9]; acc -= off[9] * y[9]; y[15] = acc; }
+    { double acc = b[10]; acc -= off[10] * y[8]; acc -= off[11] * y[11]; y[16] = acc; }
+    { double acc = b[11]; acc -= off[12] * y[6]; acc -= off[13] * y[7]; acc -= off[14] * y[10]; y[17] = acc; }
+    { int p = 12 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
+    { int p = 12 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { int p = 12 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
+    { int p = 12 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { int p = 12 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { int p = 12 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    y[13] -= A[17] * y[12];
+    y[14] -= A[18] * y[12];
+    y[15] -= A[19] * y[12];
+    y[16] -= A[20] * y[12];
+    y[17] -= A[21] * y[12];
+    y[14] -= A[24] * y[13];
+    y[15] -= A[25] * y[13];
+    y[16] -= A[26] * y[13];
+    y[17] -= A[27] * y[13];
+    y[15] -= A[31] * y[14];
+    y[16] -= A[32] * y[14];
+    y[17] -= A[33] * y[14];
+    y[16] -= A[38] * y[15];
+    y[17] -= A[39] * y[15];
+    y[17] -= A[45] * y[16];
+    y[17] *= 1.0 / A[51];
+    y[12] -= A[46] * y[17];
+    y[13] -= A[47] * y[17];
+    y[14] -= A[48] * y[17];
+    y[15] -= A[49] * y[17];
+    y[16] -= A[50] * y[17];
+    y[16] *= 1.0 / A[44];
+    y[12] -= A[40] * y[16];
+    y[13] -= A[41] * y[16];
+    y[14] -= A[42] * y[16];
+    y[15] -= A[43] * y[16];
+    y[15] *= 1.0 / A[37];
+    y[12] -= A[34] * y[15];
+    y[13] -= A[35] * y[15];
+    y[14] -= A[36] * y[15];
+    y[14] *= 1.0 / A[30];
+    y[12] -= A[28] * y[14];
+    y[13] -= A[29] * y[14];
+    y[13] *= 1.0 / A[23];
+    y[12] -= A[22] * y[13];
+    y[12] *= 1.0 / A[16];
+}
+
+/* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
+static void solve_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
+    solve_dead_centre_0(A, off, piv, b, y);
+    for (int j = 0; j < 18; ++j) x[col_order_dead_centre[j]] = y[j];
+}
 
 const kinegen_model slider_crank_quaternion_dead_centre = {
     .layout = &slider_crank_quaternion_layout, .case_name = "dead_centre",
@@ -887,6 +1041,7 @@ const kinegen_model slider_crank_quaternion_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 52, .n_diag = 31, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 15, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
+    .solve = solve_dead_centre,
     .work_doubles = SLIDER_CRANK_QUATERNION_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_QUATERNION_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

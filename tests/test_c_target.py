@@ -289,6 +289,79 @@ int main(void) {
 """
 
 
+def _four_bar_program(folder: Path, name: str, source: str, optimization: str) -> subprocess.CompletedProcess:
+    """``source`` compiled with the committed four-bar's C (quaternion) and kinegen's C solver by the
+    machine's cc (strict flags, a bounded stack), then run: its completed process."""
+    for suffix in (".c", ".h"):
+        shutil.copy(GENERATED / f"four_bar_quaternion{suffix}", folder)
+    for runtime in config.RUNTIME:
+        shutil.copy(config.SOLVER / runtime, folder)
+    (folder / f"{name}.c").write_text(source)
+    program = folder / name
+    sources = [str(folder / n) for n in (f"{name}.c", "four_bar_quaternion.c", "kinegen_solver.c")]
+    done = subprocess.run([CC, *STRICT, *CORE_STACK, optimization, "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return subprocess.run([str(program)], capture_output=True, text=True, timeout=60)
+
+
+SOLVE_PROGRAM = r"""
+#include "four_bar_quaternion.h"
+#include <stdio.h>
+#include <string.h>
+static four_bar_quaternion_workspace w;
+static double states[2][1001][3 * FOUR_BAR_QUATERNION_N_V + FOUR_BAR_QUATERNION_N_Q];
+static double inputs[3 * 16];
+
+/* the case's own motion, every step's q, v, a into states[k]; returns the steps solved */
+static int run(const kinegen_model *m, int k) {
+    kinegen_solver s;
+    int n = m->n_inputs, steps = m->steps < 1000 ? m->steps : 1000, i;
+    if (kinegen_init(&s, m, NULL, w.doubles, w.ints) != KINEGEN_OK) return -1;
+    s.options.case_inputs = 1;
+    s.options.condition = 1;
+    kinegen_case_inputs(m, m->t0, inputs);
+    if (kinegen_start(&s, m->t0, m->initial_q, inputs, inputs + n, inputs + 2 * n) != KINEGEN_OK) return -1;
+    for (i = 0; i <= steps; ++i) {
+        double t = m->t0 + (m->t1 - m->t0) * i / steps;
+        if (i > 0) {
+            kinegen_case_inputs(m, t, inputs);
+            if (kinegen_step(&s, t, inputs, inputs + n, inputs + 2 * n) != KINEGEN_OK) return i;
+        }
+        memcpy(states[k][i], s.q, sizeof(double) * (size_t)m->n_q);
+        memcpy(states[k][i] + m->n_q, s.v, sizeof(double) * (size_t)m->n_v);
+        memcpy(states[k][i] + m->n_q + m->n_v, s.a, sizeof(double) * (size_t)m->n_v);
+        states[k][i][m->n_q + 2 * m->n_v] = s.condition;
+    }
+    return steps;
+}
+
+int main(void) {
+    for (int c = 0; c < FOUR_BAR_QUATERNION_N_CASES; ++c) {
+        const kinegen_model *m = four_bar_quaternion_cases[c];
+        kinegen_model loop = *m; /* the same case solved by the solver's loop over the plan */
+        loop.solve = NULL;
+        if (m->solve == NULL) return 2;
+        int a = run(m, 0), b = run(&loop, 1);
+        if (a != b || a < 2) return 3;
+        printf("%s %d %s\n", m->case_name, a, memcmp(states[0], states[1], sizeof(states[0])) == 0 ? "identical" : "differ");
+    }
+    return 0;
+}
+"""
+
+
+def test_the_written_out_block_solve_is_the_solvers_loop_to_the_bit(tmp_path):
+    """Each case's Phi_q solve, written out straight-line by the C backend (kinegen_model.solve, one
+    function per distinct plan), does the operations of the solver's loop over the plan in the same
+    order: every case of the four-bar solved both ways (the case's struct copied with solve NULL),
+    the states of every step and the condition estimates equal to the bit. Real C, strict flags."""
+    run = _four_bar_program(tmp_path, "solve", SOLVE_PROGRAM, "-O2")
+    assert run.returncode == 0, (run.returncode, run.stdout, run.stderr)
+    lines = run.stdout.splitlines()
+    assert len(lines) == len(load_module(GENERATED / "four_bar_quaternion.py").CASES)
+    assert all(line.endswith(" identical") and int(line.split()[1]) >= 2 for line in lines), lines
+
+
 def test_the_c_solver_finds_its_kernels_by_role_and_refuses_a_table_that_declares_them_otherwise(tmp_path):
     """kinegen_init binds the kernels it calls by name from the case's and the layout's tables (no typed
     pointer of a kernel in any struct) and checks their slots and output sizes: a phi_jac declared with
@@ -296,16 +369,7 @@ def test_the_c_solver_finds_its_kernels_by_role_and_refuses_a_table_that_declare
     gamma are KINEGEN_MODEL naming the role, and every later call refuses with it (no call through a
     kernel it did not bind); a case without its own time functions (inputs, an optional role) is set up,
     only kinegen_case_inputs says it has none. Real C, compiled with the machine's cc."""
-    for suffix in (".c", ".h"):
-        shutil.copy(GENERATED / f"four_bar_quaternion{suffix}", tmp_path)
-    for name in config.RUNTIME:
-        shutil.copy(config.SOLVER / name, tmp_path)
-    (tmp_path / "roles.c").write_text(ROLES_PROGRAM)
-    program = tmp_path / "roles"
-    sources = [str(tmp_path / n) for n in ("roles.c", "four_bar_quaternion.c", "kinegen_solver.c")]
-    done = subprocess.run([CC, *STRICT, *CORE_STACK, "-O1", "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    run = subprocess.run([str(program)], capture_output=True, text=True, timeout=60)
+    run = _four_bar_program(tmp_path, "roles", ROLES_PROGRAM, "-O1")
     assert run.returncode == 0, run.stderr
     rows = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines()}
     ok, model = "0", "6"  # KINEGEN_OK, KINEGEN_MODEL

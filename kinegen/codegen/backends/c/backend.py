@@ -18,6 +18,7 @@ sensitivities' library when they are first asked for.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -133,6 +134,49 @@ def plan_arrays(rows: tuple[int, ...], cols: tuple[int, ...], plan: Plan, name: 
         off_start.append(len(off_col))
     return _PlanArrays(list(plan.block_start), stores, offset, list(plan.row_order), list(plan.col_order),
                        diag_value, diag_slot, off_start, off_col, off_value)  # fmt: skip
+
+
+#: the largest plan whose block solve the C backend writes out straight-line (operations: its blocks'
+#: n^2 values, the values below them and its n rows); a larger one is solved by the solver's loop
+STRAIGHT_SOLVE_LIMIT = 50_000
+
+
+def straight_solve(arrays: _PlanArrays) -> list[list[str]] | None:
+    """The block solve y = M^-1 b (in the plan's permuted order) for a plan's factors, written out: the
+    bodies of C functions of (``A`` the blocks' LU factors, ``off`` the values below them, ``piv`` the
+    blocks' pivots, ``b``, ``y``), called in order. kinegen_solver.c's ``solve`` loop with every index a
+    constant -- per block its rows' right-hand sides less the entries below the blocks, the block's row
+    interchanges, L's and U's substitutions --, cut at block boundaries into functions of at most about
+    :data:`config.PART_STATEMENTS` statements (the generated kernels' length, which keeps the compile
+    time linear). None for a plan over :data:`STRAIGHT_SOLVE_LIMIT`."""
+    starts, stores = arrays.block_start, arrays.block_store
+    if sum((b - a) ** 2 for a, b in itertools.pairwise(starts)) + len(arrays.off_col) + starts[-1] > STRAIGHT_SOLVE_LIMIT:
+        return None
+    pieces: list[list[str]] = [[]]
+    for block, (first, end) in enumerate(itertools.pairwise(starts)):
+        n, base = end - first, stores[block]
+        lines = []
+        for row in range(first, end):
+            entries = range(arrays.off_start[row], arrays.off_start[row + 1])
+            if entries:
+                lines.append(f"{{ double acc = b[{arrays.row_order[row]}];"
+                             + "".join(f" acc -= off[{e}] * y[{arrays.off_col[e]}];" for e in entries) + f" y[{row}] = acc; }}")  # fmt: skip
+            else:
+                lines.append(f"y[{row}] = b[{arrays.row_order[row]}];")
+        if n > 1:
+            lines += [f"{{ int p = {first} + piv[{k}]; double t = y[{k}]; y[{k}] = y[p]; y[p] = t; }}" for k in range(first, end)]
+            for k in range(n):
+                lines += [f"y[{first + i}] -= A[{base + i + k * n}] * y[{first + k}];" for i in range(k + 1, n)]
+        for k in range(n - 1, -1, -1):
+            lines.append(f"y[{first + k}] *= 1.0 / A[{base + k + k * n}];")
+            lines += [f"y[{first + i}] -= A[{base + i + k * n}] * y[{first + k}];" for i in range(k)]
+        if pieces[-1] and sum(line.count(";") for line in pieces[-1] + lines) > config.PART_STATEMENTS:
+            pieces.append([])
+        pieces[-1] += lines
+    for piece in pieces:  # (void) the arguments a piece does not read
+        text = "\n".join(piece)
+        piece[:0] = [f"(void){name};" for name in ("A", "off", "piv") if f"{name}[" not in text]
+    return pieces
 
 
 class _Model:
@@ -341,6 +385,7 @@ class _Model:
     def render(self, templates) -> dict[str, str]:
         d, stem = self.d, self.stem
         cases = []
+        solves: dict[tuple, str | None] = {}  # a plan's solve, written once: the cases sharing a plan share its function
         for name, case in d.cases.items():
             if case.plan is None:
                 raise ValueError(
@@ -352,7 +397,12 @@ class _Model:
             self.kernel_table(f"kernels_{name}", [(f"{kernel.name}_{name}", kernel) for kernel in case.kernels.values()])
             arrays = plan_arrays(case.jac_rows, case.jac_cols, case.plan, f"{d.model}/{name}: Phi_q")
             values = max((len(rows) for rows, _ in case.patterns.values()), default=0)  # the largest sensitivity kernel's
-            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values))
+            key = tuple(map(tuple, (arrays.block_start, arrays.block_store, arrays.row_order, arrays.col_order, arrays.off_start, arrays.off_col)))
+            lines = None
+            if key not in solves:
+                lines = straight_solve(arrays)
+                solves[key] = None if lines is None else f"solve_{name}"
+            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values, solve_lines=lines, solve=solves[key]))
         shared = []
         for kernel in d.kernels.values():
             function = f"{stem}_frames" if kernel.name == "frames" else f"shared_{kernel.name}"

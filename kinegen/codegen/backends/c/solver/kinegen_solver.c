@@ -331,6 +331,10 @@ static inline void solve_block(const double *A, const int *piv, double *r, const
 /* x = Phi_q^-1 b with the current factors (x and b may alias). */
 static void solve(kinegen_solver *s, const double *b, double *x) {
     const kinegen_model *m = s->model;
+    if (m->solve != NULL) { /* the case's own, straight-line: ~0.35 against ~1 us for the excavator's */
+        m->solve(s->store, s->off, s->pivots, b, x, s->y);
+        return;
+    }
     double *y = s->y; /* the solution in the permuted order */
     for (int blk = 0; blk < m->n_blocks; ++blk) {
         int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
@@ -1339,7 +1343,7 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_model, col_order, "int*"), FIELD(kinegen_model, n_store, "int"), FIELD(kinegen_model, n_diag, "int"),
     FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
     FIELD(kinegen_model, off_start, "int*"), FIELD(kinegen_model, off_col, "int*"), FIELD(kinegen_model, off_value, "int*"),
-    FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
+    FIELD(kinegen_model, solve, "function"), FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
     FIELD(kinegen_model, kernels, "pointer"), FIELD(kinegen_model, design, "pointer"),
 
     FIELD(kinegen_pattern, n, "int"), FIELD(kinegen_pattern, rows, "int*"), FIELD(kinegen_pattern, cols, "int*"),

@@ -259,6 +259,10 @@ typedef struct kinegen_model {
     const int *diag_value, *diag_slot; /*   value diag_value[k] goes to store[diag_slot[k]] */
     int n_off;                     /* values below the block diagonal, by permuted row (CSR): */
     const int *off_start, *off_col, *off_value;
+    /* x = Phi_q^-1 b from the factors (store, off, pivots as kinegen_init carves them; y: n_v values of
+     * work; x and b may alias): the plan's block solve written out for this case, straight-line (no
+     * loop over the blocks or their entries); NULL: the solver's loop over the plan (same operations) */
+    void (*solve)(const double *store, const double *off, const int *pivots, const double *b, double *x, double *y);
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
     int n_kernels;                 /* every kernel of the case, as data (with design parameters: */
     const kinegen_kernel *kernels; /*   the ones taking p, slot p last) */
