@@ -516,6 +516,56 @@ static void solve_swing(const double *A, const double *off, const int *piv, cons
     for (int j = 0; j < 8; ++j) x[col_order_swing[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_swing) */
+static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
+    { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
+    { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
+    { double acc = w[7]; acc -= A[28] * w[4]; acc -= A[29] * w[5]; acc -= A[30] * w[6]; w[7] = acc * (1.0 / A[31]); }
+    { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
+    { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
+    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    w[0] -= off[0] * w[4];
+    w[1] -= off[1] * w[4];
+    w[2] -= off[2] * w[4];
+    w[3] -= off[3] * w[4];
+    w[0] -= off[4] * w[5];
+    w[1] -= off[5] * w[5];
+    w[2] -= off[6] * w[5];
+    w[3] -= off[7] * w[5];
+    w[0] -= off[8] * w[6];
+    w[1] -= off[9] * w[6];
+    w[2] -= off[10] * w[6];
+    w[3] -= off[11] * w[6];
+    w[0] -= off[12] * w[7];
+    w[1] -= off[13] * w[7];
+    w[2] -= off[14] * w[7];
+    w[3] -= off[15] * w[7];
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+    { double acc = w[1]; acc -= A[4] * w[0]; w[1] = acc * (1.0 / A[5]); }
+    { double acc = w[2]; acc -= A[8] * w[0]; acc -= A[9] * w[1]; w[2] = acc * (1.0 / A[10]); }
+    { double acc = w[3]; acc -= A[12] * w[0]; acc -= A[13] * w[1]; acc -= A[14] * w[2]; w[3] = acc * (1.0 / A[15]); }
+    { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
+    { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
+    { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
+    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
+    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
+    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_swing(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 8; ++j) w[j] = c[col_order_swing[j]];
+    solve_transposed_swing_0(A, off, piv, w);
+    for (int i = 0; i < 8; ++i) x[row_order_swing[i]] = w[i];
+}
+
 const kinegen_model boom_dual_euler_parameters_swing = {
     .layout = &boom_dual_euler_parameters_layout, .case_name = "swing",
     .n_q = BOOM_DUAL_EULER_PARAMETERS_N_Q, .n_v = BOOM_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 46,
@@ -527,7 +577,7 @@ const kinegen_model boom_dual_euler_parameters_swing = {
     .row_order = row_order_swing, .col_order = col_order_swing,
     .n_store = 32, .n_diag = 30, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,
     .n_off = 16, .off_start = off_start_swing, .off_col = off_col_swing, .off_value = off_value_swing,
-    .solve = solve_swing,
+    .solve = solve_swing, .solve_transposed = solve_transposed_swing,
     .work_doubles = BOOM_DUAL_EULER_PARAMETERS_WORK_DOUBLES_SWING, .work_ints = BOOM_DUAL_EULER_PARAMETERS_WORK_INTS_SWING,
     .n_kernels = 5, .kernels = kernels_swing, .design = NULL,
 };

@@ -469,6 +469,35 @@ static void solve_swing(const double *A, const double *off, const int *piv, cons
     for (int j = 0; j < 6; ++j) x[col_order_swing[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_swing) */
+static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    w[1] -= off[6] * w[5];
+    w[2] -= off[7] * w[5];
+    { double acc = w[4]; w[4] = acc * (1.0 / A[6]); }
+    w[0] -= off[4] * w[4];
+    w[2] -= off[5] * w[4];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[5]); }
+    w[0] -= off[2] * w[3];
+    w[1] -= off[3] * w[3];
+    { double acc = w[2]; w[2] = acc * (1.0 / A[4]); }
+    w[0] -= off[0] * w[2];
+    w[1] -= off[1] * w[2];
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+    { double acc = w[1]; acc -= A[2] * w[0]; w[1] = acc * (1.0 / A[3]); }
+    { double acc = w[0]; acc -= A[1] * w[1]; w[0] = acc; }
+    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
+    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_swing(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 6; ++j) w[j] = c[col_order_swing[j]];
+    solve_transposed_swing_0(A, off, piv, w);
+    for (int i = 0; i < 6; ++i) x[row_order_swing[i]] = w[i];
+}
+
 const kinegen_model boom_dual_quaternion_swing = {
     .layout = &boom_dual_quaternion_layout, .case_name = "swing",
     .n_q = BOOM_DUAL_QUATERNION_N_Q, .n_v = BOOM_DUAL_QUATERNION_N_V, .n_inputs = 1, .n_jac = 16,
@@ -480,7 +509,7 @@ const kinegen_model boom_dual_quaternion_swing = {
     .row_order = row_order_swing, .col_order = col_order_swing,
     .n_store = 8, .n_diag = 8, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,
     .n_off = 8, .off_start = off_start_swing, .off_col = off_col_swing, .off_value = off_value_swing,
-    .solve = solve_swing,
+    .solve = solve_swing, .solve_transposed = solve_transposed_swing,
     .work_doubles = BOOM_DUAL_QUATERNION_WORK_DOUBLES_SWING, .work_ints = BOOM_DUAL_QUATERNION_WORK_INTS_SWING,
     .n_kernels = 5, .kernels = kernels_swing, .design = NULL,
 };

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': '5dc75f20b9babf6fadd137583836714f0b827c0caf687dd53cb33d999b51bd5c'}
+C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': 'df4851adfca9698a20f879447f1fa0fb86ac4e7121248c6a5f4c747016aa326b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_quaternion.h': '4eb07c2971cf2c4bcb08513f02d429a1e2c8486acaf573ff11152cba049cd5b0', 'boom_quaternion.c': '5fa33f543a236906ec18157197d47733299980e09463d7831a7727a33b582b01'}
+C_FILES = {'boom_quaternion.h': '4eb07c2971cf2c4bcb08513f02d429a1e2c8486acaf573ff11152cba049cd5b0', 'boom_quaternion.c': 'a55037356020e62e324cca188a852dfe1111872995251d797262819bf8c6c195'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_euler_parameters.h': '939aa29e11e9b05fdd4320ad9c94fefdc2cc91f26f765c21ccdd65b2257b703a', 'excavator_dual_euler_parameters.c': 'cb5271536dc162c033ed4964f3a63f3b587c5c1aee89582f671d31e6150d3ec2'}
+C_FILES = {'excavator_dual_euler_parameters.h': '939aa29e11e9b05fdd4320ad9c94fefdc2cc91f26f765c21ccdd65b2257b703a', 'excavator_dual_euler_parameters.c': '089602c064e48fc042b3916d1e9a41e6a594e1bdcf8abd7fef47bfc959da1eb8'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

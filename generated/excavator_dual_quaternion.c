@@ -11118,6 +11118,400 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     solve_digging_6(A, off, piv, b, y);
     for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_digging) */
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[75]; w[75] = acc * (1.0 / A[503]); }
+    { double acc = w[76]; acc -= A[512] * w[75]; w[76] = acc * (1.0 / A[513]); }
+    { double acc = w[77]; acc -= A[521] * w[75]; acc -= A[522] * w[76]; w[77] = acc * (1.0 / A[523]); }
+    { double acc = w[78]; acc -= A[530] * w[75]; acc -= A[531] * w[76]; acc -= A[532] * w[77]; w[78] = acc * (1.0 / A[533]); }
+    { double acc = w[79]; acc -= A[539] * w[75]; acc -= A[540] * w[76]; acc -= A[541] * w[77]; acc -= A[542] * w[78]; w[79] = acc * (1.0 / A[543]); }
+    { double acc = w[80]; acc -= A[548] * w[75]; acc -= A[549] * w[76]; acc -= A[550] * w[77]; acc -= A[551] * w[78]; acc -= A[552] * w[79]; w[80] = acc * (1.0 / A[553]); }
+    { double acc = w[81]; acc -= A[557] * w[75]; acc -= A[558] * w[76]; acc -= A[559] * w[77]; acc -= A[560] * w[78]; acc -= A[561] * w[79]; acc -= A[562] * w[80]; w[81] = acc * (1.0 / A[563]); }
+    { double acc = w[82]; acc -= A[566] * w[75]; acc -= A[567] * w[76]; acc -= A[568] * w[77]; acc -= A[569] * w[78]; acc -= A[570] * w[79]; acc -= A[571] * w[80]; acc -= A[572] * w[81]; w[82] = acc * (1.0 / A[573]); }
+    { double acc = w[83]; acc -= A[575] * w[75]; acc -= A[576] * w[76]; acc -= A[577] * w[77]; acc -= A[578] * w[78]; acc -= A[579] * w[79]; acc -= A[580] * w[80]; acc -= A[581] * w[81]; acc -= A[582] * w[82]; w[83] = acc * (1.0 / A[583]); }
+    { double acc = w[82]; acc -= A[574] * w[83]; w[82] = acc; }
+    { double acc = w[81]; acc -= A[564] * w[82]; acc -= A[565] * w[83]; w[81] = acc; }
+    { double acc = w[80]; acc -= A[554] * w[81]; acc -= A[555] * w[82]; acc -= A[556] * w[83]; w[80] = acc; }
+    { double acc = w[79]; acc -= A[544] * w[80]; acc -= A[545] * w[81]; acc -= A[546] * w[82]; acc -= A[547] * w[83]; w[79] = acc; }
+    { double acc = w[78]; acc -= A[534] * w[79]; acc -= A[535] * w[80]; acc -= A[536] * w[81]; acc -= A[537] * w[82]; acc -= A[538] * w[83]; w[78] = acc; }
+    { double acc = w[77]; acc -= A[524] * w[78]; acc -= A[525] * w[79]; acc -= A[526] * w[80]; acc -= A[527] * w[81]; acc -= A[528] * w[82]; acc -= A[529] * w[83]; w[77] = acc; }
+    { double acc = w[76]; acc -= A[514] * w[77]; acc -= A[515] * w[78]; acc -= A[516] * w[79]; acc -= A[517] * w[80]; acc -= A[518] * w[81]; acc -= A[519] * w[82]; acc -= A[520] * w[83]; w[76] = acc; }
+    { double acc = w[75]; acc -= A[504] * w[76]; acc -= A[505] * w[77]; acc -= A[506] * w[78]; acc -= A[507] * w[79]; acc -= A[508] * w[80]; acc -= A[509] * w[81]; acc -= A[510] * w[82]; acc -= A[511] * w[83]; w[75] = acc; }
+    { int p = 75 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    { int p = 75 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 75 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { int p = 75 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 75 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 75 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { int p = 75 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
+    { int p = 75 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
+    { int p = 75 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    w[42] -= off[161] * w[75];
+    w[43] -= off[162] * w[75];
+    w[50] -= off[163] * w[75];
+    w[42] -= off[164] * w[76];
+    w[43] -= off[165] * w[76];
+    w[50] -= off[166] * w[76];
+    w[58] -= off[167] * w[77];
+    w[64] -= off[168] * w[77];
+    w[72] -= off[169] * w[77];
+    w[62] -= off[170] * w[78];
+    w[63] -= off[171] * w[78];
+    w[72] -= off[172] * w[78];
+    w[57] -= off[173] * w[79];
+    w[63] -= off[174] * w[79];
+    w[64] -= off[175] * w[79];
+    w[54] -= off[176] * w[80];
+    w[55] -= off[177] * w[81];
+    w[56] -= off[178] * w[82];
+}
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[63]; w[63] = acc * (1.0 / A[359]); }
+    { double acc = w[64]; acc -= A[371] * w[63]; w[64] = acc * (1.0 / A[372]); }
+    { double acc = w[65]; acc -= A[383] * w[63]; acc -= A[384] * w[64]; w[65] = acc * (1.0 / A[385]); }
+    { double acc = w[66]; acc -= A[395] * w[63]; acc -= A[396] * w[64]; acc -= A[397] * w[65]; w[66] = acc * (1.0 / A[398]); }
+    { double acc = w[67]; acc -= A[407] * w[63]; acc -= A[408] * w[64]; acc -= A[409] * w[65]; acc -= A[410] * w[66]; w[67] = acc * (1.0 / A[411]); }
+    { double acc = w[68]; acc -= A[419] * w[63]; acc -= A[420] * w[64]; acc -= A[421] * w[65]; acc -= A[422] * w[66]; acc -= A[423] * w[67]; w[68] = acc * (1.0 / A[424]); }
+    { double acc = w[69]; acc -= A[431] * w[63]; acc -= A[432] * w[64]; acc -= A[433] * w[65]; acc -= A[434] * w[66]; acc -= A[435] * w[67]; acc -= A[436] * w[68]; w[69] = acc * (1.0 / A[437]); }
+    { double acc = w[70]; acc -= A[443] * w[63]; acc -= A[444] * w[64]; acc -= A[445] * w[65]; acc -= A[446] * w[66]; acc -= A[447] * w[67]; acc -= A[448] * w[68]; acc -= A[449] * w[69]; w[70] = acc * (1.0 / A[450]); }
+    { double acc = w[71]; acc -= A[455] * w[63]; acc -= A[456] * w[64]; acc -= A[457] * w[65]; acc -= A[458] * w[66]; acc -= A[459] * w[67]; acc -= A[460] * w[68]; acc -= A[461] * w[69]; acc -= A[462] * w[70]; w[71] = acc * (1.0 / A[463]); }
+    { double acc = w[72]; acc -= A[467] * w[63]; acc -= A[468] * w[64]; acc -= A[469] * w[65]; acc -= A[470] * w[66]; acc -= A[471] * w[67]; acc -= A[472] * w[68]; acc -= A[473] * w[69]; acc -= A[474] * w[70]; acc -= A[475] * w[71]; w[72] = acc * (1.0 / A[476]); }
+    { double acc = w[73]; acc -= A[479] * w[63]; acc -= A[480] * w[64]; acc -= A[481] * w[65]; acc -= A[482] * w[66]; acc -= A[483] * w[67]; acc -= A[484] * w[68]; acc -= A[485] * w[69]; acc -= A[486] * w[70]; acc -= A[487] * w[71]; acc -= A[488] * w[72]; w[73] = acc * (1.0 / A[489]); }
+    { double acc = w[74]; acc -= A[491] * w[63]; acc -= A[492] * w[64]; acc -= A[493] * w[65]; acc -= A[494] * w[66]; acc -= A[495] * w[67]; acc -= A[496] * w[68]; acc -= A[497] * w[69]; acc -= A[498] * w[70]; acc -= A[499] * w[71]; acc -= A[500] * w[72]; acc -= A[501] * w[73]; w[74] = acc * (1.0 / A[502]); }
+    { double acc = w[73]; acc -= A[490] * w[74]; w[73] = acc; }
+    { double acc = w[72]; acc -= A[477] * w[73]; acc -= A[478] * w[74]; w[72] = acc; }
+    { double acc = w[71]; acc -= A[464] * w[72]; acc -= A[465] * w[73]; acc -= A[466] * w[74]; w[71] = acc; }
+    { double acc = w[70]; acc -= A[451] * w[71]; acc -= A[452] * w[72]; acc -= A[453] * w[73]; acc -= A[454] * w[74]; w[70] = acc; }
+    { double acc = w[69]; acc -= A[438] * w[70]; acc -= A[439] * w[71]; acc -= A[440] * w[72]; acc -= A[441] * w[73]; acc -= A[442] * w[74]; w[69] = acc; }
+    { double acc = w[68]; acc -= A[425] * w[69]; acc -= A[426] * w[70]; acc -= A[427] * w[71]; acc -= A[428] * w[72]; acc -= A[429] * w[73]; acc -= A[430] * w[74]; w[68] = acc; }
+    { double acc = w[67]; acc -= A[412] * w[68]; acc -= A[413] * w[69]; acc -= A[414] * w[70]; acc -= A[415] * w[71]; acc -= A[416] * w[72]; acc -= A[417] * w[73]; acc -= A[418] * w[74]; w[67] = acc; }
+    { double acc = w[66]; acc -= A[399] * w[67]; acc -= A[400] * w[68]; acc -= A[401] * w[69]; acc -= A[402] * w[70]; acc -= A[403] * w[71]; acc -= A[404] * w[72]; acc -= A[405] * w[73]; acc -= A[406] * w[74]; w[66] = acc; }
+    { double acc = w[65]; acc -= A[386] * w[66]; acc -= A[387] * w[67]; acc -= A[388] * w[68]; acc -= A[389] * w[69]; acc -= A[390] * w[70]; acc -= A[391] * w[71]; acc -= A[392] * w[72]; acc -= A[393] * w[73]; acc -= A[394] * w[74]; w[65] = acc; }
+    { double acc = w[64]; acc -= A[373] * w[65]; acc -= A[374] * w[66]; acc -= A[375] * w[67]; acc -= A[376] * w[68]; acc -= A[377] * w[69]; acc -= A[378] * w[70]; acc -= A[379] * w[71]; acc -= A[380] * w[72]; acc -= A[381] * w[73]; acc -= A[382] * w[74]; w[64] = acc; }
+    { double acc = w[63]; acc -= A[360] * w[64]; acc -= A[361] * w[65]; acc -= A[362] * w[66]; acc -= A[363] * w[67]; acc -= A[364] * w[68]; acc -= A[365] * w[69]; acc -= A[366] * w[70]; acc -= A[367] * w[71]; acc -= A[368] * w[72]; acc -= A[369] * w[73]; acc -= A[370] * w[74]; w[63] = acc; }
+    { int p = 63 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
+    { int p = 63 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 63 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { int p = 63 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
+    { int p = 63 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    { int p = 63 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { int p = 63 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
+    { int p = 63 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 63 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { int p = 63 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
+    { int p = 63 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { int p = 63 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    w[42] -= off[140] * w[63];
+    w[43] -= off[141] * w[63];
+    w[50] -= off[142] * w[63];
+    w[42] -= off[143] * w[64];
+    w[43] -= off[144] * w[64];
+    w[50] -= off[145] * w[64];
+    w[42] -= off[146] * w[65];
+    w[43] -= off[147] * w[65];
+    w[50] -= off[148] * w[65];
+    w[59] -= off[149] * w[68];
+    w[60] -= off[150] * w[68];
+    w[61] -= off[151] * w[68];
+    w[59] -= off[152] * w[69];
+    w[60] -= off[153] * w[69];
+    w[61] -= off[154] * w[69];
+    w[58] -= off[155] * w[71];
+    w[62] -= off[156] * w[72];
+    w[57] -= off[157] * w[73];
+    w[59] -= off[158] * w[74];
+    w[60] -= off[159] * w[74];
+    w[61] -= off[160] * w[74];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    (void)piv;
+    { double acc = w[62]; w[62] = acc * (1.0 / A[358]); }
+    w[31] -= off[137] * w[62];
+    w[42] -= off[138] * w[62];
+    w[50] -= off[139] * w[62];
+    { double acc = w[61]; w[61] = acc * (1.0 / A[357]); }
+    w[30] -= off[134] * w[61];
+    w[43] -= off[135] * w[61];
+    w[50] -= off[136] * w[61];
+    { double acc = w[60]; w[60] = acc * (1.0 / A[356]); }
+    w[31] -= off[131] * w[60];
+    w[42] -= off[132] * w[60];
+    w[50] -= off[133] * w[60];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[355]); }
+    w[32] -= off[128] * w[59];
+    w[42] -= off[129] * w[59];
+    w[43] -= off[130] * w[59];
+    { double acc = w[58]; w[58] = acc * (1.0 / A[354]); }
+    w[30] -= off[125] * w[58];
+    w[43] -= off[126] * w[58];
+    w[50] -= off[127] * w[58];
+    { double acc = w[57]; w[57] = acc * (1.0 / A[353]); }
+    w[32] -= off[122] * w[57];
+    w[42] -= off[123] * w[57];
+    w[43] -= off[124] * w[57];
+    { double acc = w[56]; w[56] = acc * (1.0 / A[352]); }
+    w[32] -= off[119] * w[56];
+    w[42] -= off[120] * w[56];
+    w[43] -= off[121] * w[56];
+    { double acc = w[55]; w[55] = acc * (1.0 / A[351]); }
+    w[31] -= off[116] * w[55];
+    w[42] -= off[117] * w[55];
+    w[50] -= off[118] * w[55];
+    { double acc = w[54]; w[54] = acc * (1.0 / A[350]); }
+    w[30] -= off[113] * w[54];
+    w[43] -= off[114] * w[54];
+    w[50] -= off[115] * w[54];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[42]; w[42] = acc * (1.0 / A[206]); }
+    { double acc = w[43]; acc -= A[218] * w[42]; w[43] = acc * (1.0 / A[219]); }
+    { double acc = w[44]; acc -= A[230] * w[42]; acc -= A[231] * w[43]; w[44] = acc * (1.0 / A[232]); }
+    { double acc = w[45]; acc -= A[242] * w[42]; acc -= A[243] * w[43]; acc -= A[244] * w[44]; w[45] = acc * (1.0 / A[245]); }
+    { double acc = w[46]; acc -= A[254] * w[42]; acc -= A[255] * w[43]; acc -= A[256] * w[44]; acc -= A[257] * w[45]; w[46] = acc * (1.0 / A[258]); }
+    { double acc = w[47]; acc -= A[266] * w[42]; acc -= A[267] * w[43]; acc -= A[268] * w[44]; acc -= A[269] * w[45]; acc -= A[270] * w[46]; w[47] = acc * (1.0 / A[271]); }
+    { double acc = w[48]; acc -= A[278] * w[42]; acc -= A[279] * w[43]; acc -= A[280] * w[44]; acc -= A[281] * w[45]; acc -= A[282] * w[46]; acc -= A[283] * w[47]; w[48] = acc * (1.0 / A[284]); }
+    { double acc = w[49]; acc -= A[290] * w[42]; acc -= A[291] * w[43]; acc -= A[292] * w[44]; acc -= A[293] * w[45]; acc -= A[294] * w[46]; acc -= A[295] * w[47]; acc -= A[296] * w[48]; w[49] = acc * (1.0 / A[297]); }
+    { double acc = w[50]; acc -= A[302] * w[42]; acc -= A[303] * w[43]; acc -= A[304] * w[44]; acc -= A[305] * w[45]; acc -= A[306] * w[46]; acc -= A[307] * w[47]; acc -= A[308] * w[48]; acc -= A[309] * w[49]; w[50] = acc * (1.0 / A[310]); }
+    { double acc = w[51]; acc -= A[314] * w[42]; acc -= A[315] * w[43]; acc -= A[316] * w[44]; acc -= A[317] * w[45]; acc -= A[318] * w[46]; acc -= A[319] * w[47]; acc -= A[320] * w[48]; acc -= A[321] * w[49]; acc -= A[322] * w[50]; w[51] = acc * (1.0 / A[323]); }
+    { double acc = w[52]; acc -= A[326] * w[42]; acc -= A[327] * w[43]; acc -= A[328] * w[44]; acc -= A[329] * w[45]; acc -= A[330] * w[46]; acc -= A[331] * w[47]; acc -= A[332] * w[48]; acc -= A[333] * w[49]; acc -= A[334] * w[50]; acc -= A[335] * w[51]; w[52] = acc * (1.0 / A[336]); }
+    { double acc = w[53]; acc -= A[338] * w[42]; acc -= A[339] * w[43]; acc -= A[340] * w[44]; acc -= A[341] * w[45]; acc -= A[342] * w[46]; acc -= A[343] * w[47]; acc -= A[344] * w[48]; acc -= A[345] * w[49]; acc -= A[346] * w[50]; acc -= A[347] * w[51]; acc -= A[348] * w[52]; w[53] = acc * (1.0 / A[349]); }
+    { double acc = w[52]; acc -= A[337] * w[53]; w[52] = acc; }
+    { double acc = w[51]; acc -= A[324] * w[52]; acc -= A[325] * w[53]; w[51] = acc; }
+    { double acc = w[50]; acc -= A[311] * w[51]; acc -= A[312] * w[52]; acc -= A[313] * w[53]; w[50] = acc; }
+    { double acc = w[49]; acc -= A[298] * w[50]; acc -= A[299] * w[51]; acc -= A[300] * w[52]; acc -= A[301] * w[53]; w[49] = acc; }
+    { double acc = w[48]; acc -= A[285] * w[49]; acc -= A[286] * w[50]; acc -= A[287] * w[51]; acc -= A[288] * w[52]; acc -= A[289] * w[53]; w[48] = acc; }
+    { double acc = w[47]; acc -= A[272] * w[48]; acc -= A[273] * w[49]; acc -= A[274] * w[50]; acc -= A[275] * w[51]; acc -= A[276] * w[52]; acc -= A[277] * w[53]; w[47] = acc; }
+    { double acc = w[46]; acc -= A[259] * w[47]; acc -= A[260] * w[48]; acc -= A[261] * w[49]; acc -= A[262] * w[50]; acc -= A[263] * w[51]; acc -= A[264] * w[52]; acc -= A[265] * w[53]; w[46] = acc; }
+    { double acc = w[45]; acc -= A[246] * w[46]; acc -= A[247] * w[47]; acc -= A[248] * w[48]; acc -= A[249] * w[49]; acc -= A[250] * w[50]; acc -= A[251] * w[51]; acc -= A[252] * w[52]; acc -= A[253] * w[53]; w[45] = acc; }
+    { double acc = w[44]; acc -= A[233] * w[45]; acc -= A[234] * w[46]; acc -= A[235] * w[47]; acc -= A[236] * w[48]; acc -= A[237] * w[49]; acc -= A[238] * w[50]; acc -= A[239] * w[51]; acc -= A[240] * w[52]; acc -= A[241] * w[53]; w[44] = acc; }
+    { double acc = w[43]; acc -= A[220] * w[44]; acc -= A[221] * w[45]; acc -= A[222] * w[46]; acc -= A[223] * w[47]; acc -= A[224] * w[48]; acc -= A[225] * w[49]; acc -= A[226] * w[50]; acc -= A[227] * w[51]; acc -= A[228] * w[52]; acc -= A[229] * w[53]; w[43] = acc; }
+    { double acc = w[42]; acc -= A[207] * w[43]; acc -= A[208] * w[44]; acc -= A[209] * w[45]; acc -= A[210] * w[46]; acc -= A[211] * w[47]; acc -= A[212] * w[48]; acc -= A[213] * w[49]; acc -= A[214] * w[50]; acc -= A[215] * w[51]; acc -= A[216] * w[52]; acc -= A[217] * w[53]; w[42] = acc; }
+    { int p = 42 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
+    { int p = 42 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
+    { int p = 42 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { int p = 42 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    { int p = 42 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { int p = 42 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { int p = 42 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
+    { int p = 42 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { int p = 42 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
+    { int p = 42 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
+    { int p = 42 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
+    { int p = 42 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
+    w[15] -= off[92] * w[42];
+    w[16] -= off[93] * w[42];
+    w[23] -= off[94] * w[42];
+    w[15] -= off[95] * w[43];
+    w[16] -= off[96] * w[43];
+    w[23] -= off[97] * w[43];
+    w[15] -= off[98] * w[44];
+    w[16] -= off[99] * w[44];
+    w[23] -= off[100] * w[44];
+    w[33] -= off[101] * w[47];
+    w[34] -= off[102] * w[47];
+    w[35] -= off[103] * w[47];
+    w[33] -= off[104] * w[48];
+    w[34] -= off[105] * w[48];
+    w[35] -= off[106] * w[48];
+    w[30] -= off[107] * w[50];
+    w[31] -= off[108] * w[51];
+    w[32] -= off[109] * w[52];
+    w[33] -= off[110] * w[53];
+    w[34] -= off[111] * w[53];
+    w[35] -= off[112] * w[53];
+}
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[36]; w[36] = acc * (1.0 / A[170]); }
+    { double acc = w[37]; acc -= A[176] * w[36]; w[37] = acc * (1.0 / A[177]); }
+    { double acc = w[38]; acc -= A[182] * w[36]; acc -= A[183] * w[37]; w[38] = acc * (1.0 / A[184]); }
+    { double acc = w[39]; acc -= A[188] * w[36]; acc -= A[189] * w[37]; acc -= A[190] * w[38]; w[39] = acc * (1.0 / A[191]); }
+    { double acc = w[40]; acc -= A[194] * w[36]; acc -= A[195] * w[37]; acc -= A[196] * w[38]; acc -= A[197] * w[39]; w[40] = acc * (1.0 / A[198]); }
+    { double acc = w[41]; acc -= A[200] * w[36]; acc -= A[201] * w[37]; acc -= A[202] * w[38]; acc -= A[203] * w[39]; acc -= A[204] * w[40]; w[41] = acc * (1.0 / A[205]); }
+    { double acc = w[40]; acc -= A[199] * w[41]; w[40] = acc; }
+    { double acc = w[39]; acc -= A[192] * w[40]; acc -= A[193] * w[41]; w[39] = acc; }
+    { double acc = w[38]; acc -= A[185] * w[39]; acc -= A[186] * w[40]; acc -= A[187] * w[41]; w[38] = acc; }
+    { double acc = w[37]; acc -= A[178] * w[38]; acc -= A[179] * w[39]; acc -= A[180] * w[40]; acc -= A[181] * w[41]; w[37] = acc; }
+    { double acc = w[36]; acc -= A[171] * w[37]; acc -= A[172] * w[38]; acc -= A[173] * w[39]; acc -= A[174] * w[40]; acc -= A[175] * w[41]; w[36] = acc; }
+    { int p = 36 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
+    { int p = 36 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
+    { int p = 36 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
+    { int p = 36 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
+    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
+    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    w[3] -= off[77] * w[36];
+    w[4] -= off[78] * w[36];
+    w[5] -= off[79] * w[36];
+    w[8] -= off[80] * w[39];
+    w[13] -= off[81] * w[39];
+    w[14] -= off[82] * w[39];
+    w[27] -= off[83] * w[39];
+    w[28] -= off[84] * w[39];
+    w[29] -= off[85] * w[39];
+    w[8] -= off[86] * w[40];
+    w[13] -= off[87] * w[40];
+    w[14] -= off[88] * w[40];
+    w[27] -= off[89] * w[40];
+    w[28] -= off[90] * w[40];
+    w[29] -= off[91] * w[40];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[169]); }
+    w[9] -= off[74] * w[35];
+    w[16] -= off[75] * w[35];
+    w[23] -= off[76] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[168]); }
+    w[10] -= off[71] * w[34];
+    w[15] -= off[72] * w[34];
+    w[23] -= off[73] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[167]); }
+    w[6] -= off[68] * w[33];
+    w[15] -= off[69] * w[33];
+    w[16] -= off[70] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[166]); }
+    w[6] -= off[65] * w[32];
+    w[15] -= off[66] * w[32];
+    w[16] -= off[67] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[165]); }
+    w[10] -= off[62] * w[31];
+    w[15] -= off[63] * w[31];
+    w[23] -= off[64] * w[31];
+    { double acc = w[30]; w[30] = acc * (1.0 / A[164]); }
+    w[9] -= off[59] * w[30];
+    w[16] -= off[60] * w[30];
+    w[23] -= off[61] * w[30];
+    { double acc = w[29]; w[29] = acc * (1.0 / A[163]); }
+    w[9] -= off[56] * w[29];
+    w[16] -= off[57] * w[29];
+    w[23] -= off[58] * w[29];
+    { double acc = w[28]; w[28] = acc * (1.0 / A[162]); }
+    w[10] -= off[53] * w[28];
+    w[15] -= off[54] * w[28];
+    w[23] -= off[55] * w[28];
+    { double acc = w[27]; w[27] = acc * (1.0 / A[161]); }
+    w[6] -= off[50] * w[27];
+    w[15] -= off[51] * w[27];
+    w[16] -= off[52] * w[27];
+}
+static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
+    { double acc = w[16]; acc -= A[29] * w[15]; w[16] = acc * (1.0 / A[30]); }
+    { double acc = w[17]; acc -= A[41] * w[15]; acc -= A[42] * w[16]; w[17] = acc * (1.0 / A[43]); }
+    { double acc = w[18]; acc -= A[53] * w[15]; acc -= A[54] * w[16]; acc -= A[55] * w[17]; w[18] = acc * (1.0 / A[56]); }
+    { double acc = w[19]; acc -= A[65] * w[15]; acc -= A[66] * w[16]; acc -= A[67] * w[17]; acc -= A[68] * w[18]; w[19] = acc * (1.0 / A[69]); }
+    { double acc = w[20]; acc -= A[77] * w[15]; acc -= A[78] * w[16]; acc -= A[79] * w[17]; acc -= A[80] * w[18]; acc -= A[81] * w[19]; w[20] = acc * (1.0 / A[82]); }
+    { double acc = w[21]; acc -= A[89] * w[15]; acc -= A[90] * w[16]; acc -= A[91] * w[17]; acc -= A[92] * w[18]; acc -= A[93] * w[19]; acc -= A[94] * w[20]; w[21] = acc * (1.0 / A[95]); }
+    { double acc = w[22]; acc -= A[101] * w[15]; acc -= A[102] * w[16]; acc -= A[103] * w[17]; acc -= A[104] * w[18]; acc -= A[105] * w[19]; acc -= A[106] * w[20]; acc -= A[107] * w[21]; w[22] = acc * (1.0 / A[108]); }
+    { double acc = w[23]; acc -= A[113] * w[15]; acc -= A[114] * w[16]; acc -= A[115] * w[17]; acc -= A[116] * w[18]; acc -= A[117] * w[19]; acc -= A[118] * w[20]; acc -= A[119] * w[21]; acc -= A[120] * w[22]; w[23] = acc * (1.0 / A[121]); }
+    { double acc = w[24]; acc -= A[125] * w[15]; acc -= A[126] * w[16]; acc -= A[127] * w[17]; acc -= A[128] * w[18]; acc -= A[129] * w[19]; acc -= A[130] * w[20]; acc -= A[131] * w[21]; acc -= A[132] * w[22]; acc -= A[133] * w[23]; w[24] = acc * (1.0 / A[134]); }
+    { double acc = w[25]; acc -= A[137] * w[15]; acc -= A[138] * w[16]; acc -= A[139] * w[17]; acc -= A[140] * w[18]; acc -= A[141] * w[19]; acc -= A[142] * w[20]; acc -= A[143] * w[21]; acc -= A[144] * w[22]; acc -= A[145] * w[23]; acc -= A[146] * w[24]; w[25] = acc * (1.0 / A[147]); }
+    { double acc = w[26]; acc -= A[149] * w[15]; acc -= A[150] * w[16]; acc -= A[151] * w[17]; acc -= A[152] * w[18]; acc -= A[153] * w[19]; acc -= A[154] * w[20]; acc -= A[155] * w[21]; acc -= A[156] * w[22]; acc -= A[157] * w[23]; acc -= A[158] * w[24]; acc -= A[159] * w[25]; w[26] = acc * (1.0 / A[160]); }
+    { double acc = w[25]; acc -= A[148] * w[26]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[135] * w[25]; acc -= A[136] * w[26]; w[24] = acc; }
+    { double acc = w[23]; acc -= A[122] * w[24]; acc -= A[123] * w[25]; acc -= A[124] * w[26]; w[23] = acc; }
+    { double acc = w[22]; acc -= A[109] * w[23]; acc -= A[110] * w[24]; acc -= A[111] * w[25]; acc -= A[112] * w[26]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[96] * w[22]; acc -= A[97] * w[23]; acc -= A[98] * w[24]; acc -= A[99] * w[25]; acc -= A[100] * w[26]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[83] * w[21]; acc -= A[84] * w[22]; acc -= A[85] * w[23]; acc -= A[86] * w[24]; acc -= A[87] * w[25]; acc -= A[88] * w[26]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[70] * w[20]; acc -= A[71] * w[21]; acc -= A[72] * w[22]; acc -= A[73] * w[23]; acc -= A[74] * w[24]; acc -= A[75] * w[25]; acc -= A[76] * w[26]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[57] * w[19]; acc -= A[58] * w[20]; acc -= A[59] * w[21]; acc -= A[60] * w[22]; acc -= A[61] * w[23]; acc -= A[62] * w[24]; acc -= A[63] * w[25]; acc -= A[64] * w[26]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[44] * w[18]; acc -= A[45] * w[19]; acc -= A[46] * w[20]; acc -= A[47] * w[21]; acc -= A[48] * w[22]; acc -= A[49] * w[23]; acc -= A[50] * w[24]; acc -= A[51] * w[25]; acc -= A[52] * w[26]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[31] * w[17]; acc -= A[32] * w[18]; acc -= A[33] * w[19]; acc -= A[34] * w[20]; acc -= A[35] * w[21]; acc -= A[36] * w[22]; acc -= A[37] * w[23]; acc -= A[38] * w[24]; acc -= A[39] * w[25]; acc -= A[40] * w[26]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; w[15] = acc; }
+    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    w[3] -= off[29] * w[15];
+    w[4] -= off[30] * w[15];
+    w[5] -= off[31] * w[15];
+    w[3] -= off[32] * w[16];
+    w[4] -= off[33] * w[16];
+    w[5] -= off[34] * w[16];
+    w[3] -= off[35] * w[17];
+    w[4] -= off[36] * w[17];
+    w[5] -= off[37] * w[17];
+    w[7] -= off[38] * w[20];
+    w[11] -= off[39] * w[20];
+    w[12] -= off[40] * w[20];
+    w[7] -= off[41] * w[21];
+    w[11] -= off[42] * w[21];
+    w[12] -= off[43] * w[21];
+    w[9] -= off[44] * w[23];
+    w[10] -= off[45] * w[24];
+    w[6] -= off[46] * w[25];
+    w[7] -= off[47] * w[26];
+    w[11] -= off[48] * w[26];
+    w[12] -= off[49] * w[26];
+}
+static void solve_transposed_digging_6(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
+    w[1] -= off[26] * w[14];
+    w[3] -= off[27] * w[14];
+    w[5] -= off[28] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[15]); }
+    w[0] -= off[23] * w[13];
+    w[4] -= off[24] * w[13];
+    w[5] -= off[25] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[14]); }
+    w[0] -= off[20] * w[12];
+    w[4] -= off[21] * w[12];
+    w[5] -= off[22] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[13]); }
+    w[1] -= off[17] * w[11];
+    w[3] -= off[18] * w[11];
+    w[5] -= off[19] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[12]); }
+    w[1] -= off[14] * w[10];
+    w[3] -= off[15] * w[10];
+    w[5] -= off[16] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[11]); }
+    w[0] -= off[11] * w[9];
+    w[4] -= off[12] * w[9];
+    w[5] -= off[13] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
+    w[2] -= off[8] * w[8];
+    w[3] -= off[9] * w[8];
+    w[4] -= off[10] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
+    w[2] -= off[5] * w[7];
+    w[3] -= off[6] * w[7];
+    w[4] -= off[7] * w[7];
+    { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
+    w[2] -= off[2] * w[6];
+    w[3] -= off[3] * w[6];
+    w[4] -= off[4] * w[6];
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    w[3] -= off[0] * w[5];
+    w[4] -= off[1] * w[5];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
+    solve_transposed_digging_0(A, off, piv, w);
+    solve_transposed_digging_1(A, off, piv, w);
+    solve_transposed_digging_2(A, off, piv, w);
+    solve_transposed_digging_3(A, off, piv, w);
+    solve_transposed_digging_4(A, off, piv, w);
+    solve_transposed_digging_5(A, off, piv, w);
+    solve_transposed_digging_6(A, off, piv, w);
+    for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
+}
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11134,7 +11528,7 @@ const kinegen_model excavator_dual_quaternion_digging = {
     .row_order = row_order_digging, .col_order = col_order_digging,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 179, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -11697,6 +12091,387 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     solve_level_cut_4(A, off, piv, b, y);
     for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_level_cut) */
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[78]; w[78] = acc * (1.0 / A[356]); }
+    { double acc = w[79]; acc -= A[362] * w[78]; w[79] = acc * (1.0 / A[363]); }
+    { double acc = w[80]; acc -= A[368] * w[78]; acc -= A[369] * w[79]; w[80] = acc * (1.0 / A[370]); }
+    { double acc = w[81]; acc -= A[374] * w[78]; acc -= A[375] * w[79]; acc -= A[376] * w[80]; w[81] = acc * (1.0 / A[377]); }
+    { double acc = w[82]; acc -= A[380] * w[78]; acc -= A[381] * w[79]; acc -= A[382] * w[80]; acc -= A[383] * w[81]; w[82] = acc * (1.0 / A[384]); }
+    { double acc = w[83]; acc -= A[386] * w[78]; acc -= A[387] * w[79]; acc -= A[388] * w[80]; acc -= A[389] * w[81]; acc -= A[390] * w[82]; w[83] = acc * (1.0 / A[391]); }
+    { double acc = w[82]; acc -= A[385] * w[83]; w[82] = acc; }
+    { double acc = w[81]; acc -= A[378] * w[82]; acc -= A[379] * w[83]; w[81] = acc; }
+    { double acc = w[80]; acc -= A[371] * w[81]; acc -= A[372] * w[82]; acc -= A[373] * w[83]; w[80] = acc; }
+    { double acc = w[79]; acc -= A[364] * w[80]; acc -= A[365] * w[81]; acc -= A[366] * w[82]; acc -= A[367] * w[83]; w[79] = acc; }
+    { double acc = w[78]; acc -= A[357] * w[79]; acc -= A[358] * w[80]; acc -= A[359] * w[81]; acc -= A[360] * w[82]; acc -= A[361] * w[83]; w[78] = acc; }
+    { int p = 78 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    { int p = 78 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 78 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { int p = 78 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    w[19] -= off[175] * w[78];
+    w[23] -= off[176] * w[78];
+    w[24] -= off[177] * w[78];
+    w[44] -= off[178] * w[81];
+    w[45] -= off[179] * w[81];
+    w[61] -= off[180] * w[81];
+    w[75] -= off[181] * w[81];
+    w[76] -= off[182] * w[81];
+    w[77] -= off[183] * w[81];
+    w[44] -= off[184] * w[82];
+    w[45] -= off[185] * w[82];
+    w[61] -= off[186] * w[82];
+    w[75] -= off[187] * w[82];
+    w[76] -= off[188] * w[82];
+    w[77] -= off[189] * w[82];
+    { double acc = w[77]; w[77] = acc * (1.0 / A[355]); }
+    w[40] -= off[172] * w[77];
+    w[70] -= off[173] * w[77];
+    w[71] -= off[174] * w[77];
+    { double acc = w[76]; w[76] = acc * (1.0 / A[354]); }
+    w[60] -= off[169] * w[76];
+    w[69] -= off[170] * w[76];
+    w[71] -= off[171] * w[76];
+    { double acc = w[75]; w[75] = acc * (1.0 / A[353]); }
+    w[41] -= off[166] * w[75];
+    w[69] -= off[167] * w[75];
+    w[70] -= off[168] * w[75];
+    { double acc = w[69]; w[69] = acc * (1.0 / A[317]); }
+    { double acc = w[70]; acc -= A[323] * w[69]; w[70] = acc * (1.0 / A[324]); }
+    { double acc = w[71]; acc -= A[329] * w[69]; acc -= A[330] * w[70]; w[71] = acc * (1.0 / A[331]); }
+    { double acc = w[72]; acc -= A[335] * w[69]; acc -= A[336] * w[70]; acc -= A[337] * w[71]; w[72] = acc * (1.0 / A[338]); }
+    { double acc = w[73]; acc -= A[341] * w[69]; acc -= A[342] * w[70]; acc -= A[343] * w[71]; acc -= A[344] * w[72]; w[73] = acc * (1.0 / A[345]); }
+    { double acc = w[74]; acc -= A[347] * w[69]; acc -= A[348] * w[70]; acc -= A[349] * w[71]; acc -= A[350] * w[72]; acc -= A[351] * w[73]; w[74] = acc * (1.0 / A[352]); }
+    { double acc = w[73]; acc -= A[346] * w[74]; w[73] = acc; }
+    { double acc = w[72]; acc -= A[339] * w[73]; acc -= A[340] * w[74]; w[72] = acc; }
+    { double acc = w[71]; acc -= A[332] * w[72]; acc -= A[333] * w[73]; acc -= A[334] * w[74]; w[71] = acc; }
+    { double acc = w[70]; acc -= A[325] * w[71]; acc -= A[326] * w[72]; acc -= A[327] * w[73]; acc -= A[328] * w[74]; w[70] = acc; }
+    { double acc = w[69]; acc -= A[318] * w[70]; acc -= A[319] * w[71]; acc -= A[320] * w[72]; acc -= A[321] * w[73]; acc -= A[322] * w[74]; w[69] = acc; }
+    { int p = 69 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
+    { int p = 69 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 69 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { int p = 69 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
+    { int p = 69 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    { int p = 69 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    w[19] -= off[151] * w[69];
+    w[23] -= off[152] * w[69];
+    w[24] -= off[153] * w[69];
+    w[19] -= off[154] * w[70];
+    w[23] -= off[155] * w[70];
+    w[24] -= off[156] * w[70];
+    w[40] -= off[157] * w[71];
+    w[43] -= off[158] * w[71];
+    w[60] -= off[159] * w[72];
+    w[68] -= off[160] * w[72];
+    w[41] -= off[161] * w[73];
+    w[42] -= off[162] * w[73];
+    w[25] -= off[163] * w[74];
+    w[26] -= off[164] * w[74];
+    w[27] -= off[165] * w[74];
+    { double acc = w[68]; w[68] = acc * (1.0 / A[316]); }
+    w[25] -= off[148] * w[68];
+    w[27] -= off[149] * w[68];
+    w[59] -= off[150] * w[68];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[62]; w[62] = acc * (1.0 / A[280]); }
+    { double acc = w[63]; acc -= A[286] * w[62]; w[63] = acc * (1.0 / A[287]); }
+    { double acc = w[64]; acc -= A[292] * w[62]; acc -= A[293] * w[63]; w[64] = acc * (1.0 / A[294]); }
+    { double acc = w[65]; acc -= A[298] * w[62]; acc -= A[299] * w[63]; acc -= A[300] * w[64]; w[65] = acc * (1.0 / A[301]); }
+    { double acc = w[66]; acc -= A[304] * w[62]; acc -= A[305] * w[63]; acc -= A[306] * w[64]; acc -= A[307] * w[65]; w[66] = acc * (1.0 / A[308]); }
+    { double acc = w[67]; acc -= A[310] * w[62]; acc -= A[311] * w[63]; acc -= A[312] * w[64]; acc -= A[313] * w[65]; acc -= A[314] * w[66]; w[67] = acc * (1.0 / A[315]); }
+    { double acc = w[66]; acc -= A[309] * w[67]; w[66] = acc; }
+    { double acc = w[65]; acc -= A[302] * w[66]; acc -= A[303] * w[67]; w[65] = acc; }
+    { double acc = w[64]; acc -= A[295] * w[65]; acc -= A[296] * w[66]; acc -= A[297] * w[67]; w[64] = acc; }
+    { double acc = w[63]; acc -= A[288] * w[64]; acc -= A[289] * w[65]; acc -= A[290] * w[66]; acc -= A[291] * w[67]; w[63] = acc; }
+    { double acc = w[62]; acc -= A[281] * w[63]; acc -= A[282] * w[64]; acc -= A[283] * w[65]; acc -= A[284] * w[66]; acc -= A[285] * w[67]; w[62] = acc; }
+    { int p = 62 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 62 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { int p = 62 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
+    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    w[15] -= off[133] * w[62];
+    w[16] -= off[134] * w[62];
+    w[20] -= off[135] * w[62];
+    w[35] -= off[136] * w[65];
+    w[36] -= off[137] * w[65];
+    w[37] -= off[138] * w[65];
+    w[38] -= off[139] * w[65];
+    w[39] -= off[140] * w[65];
+    w[58] -= off[141] * w[65];
+    w[35] -= off[142] * w[66];
+    w[36] -= off[143] * w[66];
+    w[37] -= off[144] * w[66];
+    w[38] -= off[145] * w[66];
+    w[39] -= off[146] * w[66];
+    w[58] -= off[147] * w[66];
+    { double acc = w[61]; w[61] = acc * (1.0 / A[279]); }
+    w[19] -= off[130] * w[61];
+    w[24] -= off[131] * w[61];
+    w[34] -= off[132] * w[61];
+    { double acc = w[60]; w[60] = acc * (1.0 / A[278]); }
+    w[19] -= off[127] * w[60];
+    w[24] -= off[128] * w[60];
+    w[34] -= off[129] * w[60];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[277]); }
+    w[19] -= off[124] * w[59];
+    w[24] -= off[125] * w[59];
+    w[34] -= off[126] * w[59];
+    { double acc = w[58]; w[58] = acc * (1.0 / A[276]); }
+    w[19] -= off[121] * w[58];
+    w[24] -= off[122] * w[58];
+    w[34] -= off[123] * w[58];
+    { double acc = w[52]; w[52] = acc * (1.0 / A[240]); }
+    { double acc = w[53]; acc -= A[246] * w[52]; w[53] = acc * (1.0 / A[247]); }
+    { double acc = w[54]; acc -= A[252] * w[52]; acc -= A[253] * w[53]; w[54] = acc * (1.0 / A[254]); }
+    { double acc = w[55]; acc -= A[258] * w[52]; acc -= A[259] * w[53]; acc -= A[260] * w[54]; w[55] = acc * (1.0 / A[261]); }
+    { double acc = w[56]; acc -= A[264] * w[52]; acc -= A[265] * w[53]; acc -= A[266] * w[54]; acc -= A[267] * w[55]; w[56] = acc * (1.0 / A[268]); }
+    { double acc = w[57]; acc -= A[270] * w[52]; acc -= A[271] * w[53]; acc -= A[272] * w[54]; acc -= A[273] * w[55]; acc -= A[274] * w[56]; w[57] = acc * (1.0 / A[275]); }
+    { double acc = w[56]; acc -= A[269] * w[57]; w[56] = acc; }
+    { double acc = w[55]; acc -= A[262] * w[56]; acc -= A[263] * w[57]; w[55] = acc; }
+    { double acc = w[54]; acc -= A[255] * w[55]; acc -= A[256] * w[56]; acc -= A[257] * w[57]; w[54] = acc; }
+    { double acc = w[53]; acc -= A[248] * w[54]; acc -= A[249] * w[55]; acc -= A[250] * w[56]; acc -= A[251] * w[57]; w[53] = acc; }
+    { double acc = w[52]; acc -= A[241] * w[53]; acc -= A[242] * w[54]; acc -= A[243] * w[55]; acc -= A[244] * w[56]; acc -= A[245] * w[57]; w[52] = acc; }
+    { int p = 52 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
+    { int p = 52 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    { int p = 52 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
+    { int p = 52 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
+    { int p = 52 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
+    { int p = 52 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
+    w[3] -= off[106] * w[52];
+    w[4] -= off[107] * w[52];
+    w[5] -= off[108] * w[52];
+    w[8] -= off[109] * w[55];
+    w[13] -= off[110] * w[55];
+    w[14] -= off[111] * w[55];
+    w[31] -= off[112] * w[55];
+    w[32] -= off[113] * w[55];
+    w[33] -= off[114] * w[55];
+    w[8] -= off[115] * w[56];
+    w[13] -= off[116] * w[56];
+    w[14] -= off[117] * w[56];
+    w[31] -= off[118] * w[56];
+    w[32] -= off[119] * w[56];
+    w[33] -= off[120] * w[56];
+}
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[46]; w[46] = acc * (1.0 / A[204]); }
+    { double acc = w[47]; acc -= A[210] * w[46]; w[47] = acc * (1.0 / A[211]); }
+    { double acc = w[48]; acc -= A[216] * w[46]; acc -= A[217] * w[47]; w[48] = acc * (1.0 / A[218]); }
+    { double acc = w[49]; acc -= A[222] * w[46]; acc -= A[223] * w[47]; acc -= A[224] * w[48]; w[49] = acc * (1.0 / A[225]); }
+    { double acc = w[50]; acc -= A[228] * w[46]; acc -= A[229] * w[47]; acc -= A[230] * w[48]; acc -= A[231] * w[49]; w[50] = acc * (1.0 / A[232]); }
+    { double acc = w[51]; acc -= A[234] * w[46]; acc -= A[235] * w[47]; acc -= A[236] * w[48]; acc -= A[237] * w[49]; acc -= A[238] * w[50]; w[51] = acc * (1.0 / A[239]); }
+    { double acc = w[50]; acc -= A[233] * w[51]; w[50] = acc; }
+    { double acc = w[49]; acc -= A[226] * w[50]; acc -= A[227] * w[51]; w[49] = acc; }
+    { double acc = w[48]; acc -= A[219] * w[49]; acc -= A[220] * w[50]; acc -= A[221] * w[51]; w[48] = acc; }
+    { double acc = w[47]; acc -= A[212] * w[48]; acc -= A[213] * w[49]; acc -= A[214] * w[50]; acc -= A[215] * w[51]; w[47] = acc; }
+    { double acc = w[46]; acc -= A[205] * w[47]; acc -= A[206] * w[48]; acc -= A[207] * w[49]; acc -= A[208] * w[50]; acc -= A[209] * w[51]; w[46] = acc; }
+    { int p = 46 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { int p = 46 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    { int p = 46 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { int p = 46 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
+    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    w[3] -= off[91] * w[46];
+    w[4] -= off[92] * w[46];
+    w[5] -= off[93] * w[46];
+    w[7] -= off[94] * w[49];
+    w[11] -= off[95] * w[49];
+    w[12] -= off[96] * w[49];
+    w[28] -= off[97] * w[49];
+    w[29] -= off[98] * w[49];
+    w[30] -= off[99] * w[49];
+    w[7] -= off[100] * w[50];
+    w[11] -= off[101] * w[50];
+    w[12] -= off[102] * w[50];
+    w[28] -= off[103] * w[50];
+    w[29] -= off[104] * w[50];
+    w[30] -= off[105] * w[50];
+    { double acc = w[45]; w[45] = acc * (1.0 / A[203]); }
+    w[18] -= off[88] * w[45];
+    w[19] -= off[89] * w[45];
+    w[23] -= off[90] * w[45];
+    { double acc = w[44]; w[44] = acc * (1.0 / A[202]); }
+    w[17] -= off[85] * w[44];
+    w[23] -= off[86] * w[44];
+    w[24] -= off[87] * w[44];
+    { double acc = w[43]; w[43] = acc * (1.0 / A[201]); }
+    w[21] -= off[82] * w[43];
+    w[25] -= off[83] * w[43];
+    w[26] -= off[84] * w[43];
+    { double acc = w[42]; w[42] = acc * (1.0 / A[200]); }
+    w[22] -= off[79] * w[42];
+    w[26] -= off[80] * w[42];
+    w[27] -= off[81] * w[42];
+    { double acc = w[41]; w[41] = acc * (1.0 / A[199]); }
+    w[18] -= off[76] * w[41];
+    w[19] -= off[77] * w[41];
+    w[23] -= off[78] * w[41];
+    { double acc = w[40]; w[40] = acc * (1.0 / A[198]); }
+    w[17] -= off[73] * w[40];
+    w[23] -= off[74] * w[40];
+    w[24] -= off[75] * w[40];
+    { double acc = w[39]; w[39] = acc * (1.0 / A[197]); }
+    w[17] -= off[70] * w[39];
+    w[23] -= off[71] * w[39];
+    w[24] -= off[72] * w[39];
+    { double acc = w[38]; w[38] = acc * (1.0 / A[196]); }
+    w[18] -= off[67] * w[38];
+    w[19] -= off[68] * w[38];
+    w[23] -= off[69] * w[38];
+    { double acc = w[37]; w[37] = acc * (1.0 / A[195]); }
+    w[6] -= off[64] * w[37];
+    w[15] -= off[65] * w[37];
+    w[16] -= off[66] * w[37];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[194]); }
+    w[10] -= off[61] * w[36];
+    w[15] -= off[62] * w[36];
+    w[20] -= off[63] * w[36];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[193]); }
+    w[9] -= off[58] * w[35];
+    w[16] -= off[59] * w[35];
+    w[20] -= off[60] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[192]); }
+    w[10] -= off[55] * w[34];
+    w[15] -= off[56] * w[34];
+    w[20] -= off[57] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[191]); }
+    w[9] -= off[52] * w[33];
+    w[16] -= off[53] * w[33];
+    w[20] -= off[54] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[190]); }
+    w[10] -= off[49] * w[32];
+    w[15] -= off[50] * w[32];
+    w[20] -= off[51] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[189]); }
+    w[6] -= off[46] * w[31];
+    w[15] -= off[47] * w[31];
+    w[16] -= off[48] * w[31];
+    { double acc = w[30]; w[30] = acc * (1.0 / A[188]); }
+    w[9] -= off[43] * w[30];
+    w[16] -= off[44] * w[30];
+    w[20] -= off[45] * w[30];
+    { double acc = w[29]; w[29] = acc * (1.0 / A[187]); }
+    w[10] -= off[40] * w[29];
+    w[15] -= off[41] * w[29];
+    w[20] -= off[42] * w[29];
+    { double acc = w[28]; w[28] = acc * (1.0 / A[186]); }
+    w[6] -= off[37] * w[28];
+    w[15] -= off[38] * w[28];
+    w[16] -= off[39] * w[28];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
+    { double acc = w[16]; acc -= A[30] * w[15]; w[16] = acc * (1.0 / A[31]); }
+    { double acc = w[17]; acc -= A[43] * w[15]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
+    { double acc = w[18]; acc -= A[56] * w[15]; acc -= A[57] * w[16]; acc -= A[58] * w[17]; w[18] = acc * (1.0 / A[59]); }
+    { double acc = w[19]; acc -= A[69] * w[15]; acc -= A[70] * w[16]; acc -= A[71] * w[17]; acc -= A[72] * w[18]; w[19] = acc * (1.0 / A[73]); }
+    { double acc = w[20]; acc -= A[82] * w[15]; acc -= A[83] * w[16]; acc -= A[84] * w[17]; acc -= A[85] * w[18]; acc -= A[86] * w[19]; w[20] = acc * (1.0 / A[87]); }
+    { double acc = w[21]; acc -= A[95] * w[15]; acc -= A[96] * w[16]; acc -= A[97] * w[17]; acc -= A[98] * w[18]; acc -= A[99] * w[19]; acc -= A[100] * w[20]; w[21] = acc * (1.0 / A[101]); }
+    { double acc = w[22]; acc -= A[108] * w[15]; acc -= A[109] * w[16]; acc -= A[110] * w[17]; acc -= A[111] * w[18]; acc -= A[112] * w[19]; acc -= A[113] * w[20]; acc -= A[114] * w[21]; w[22] = acc * (1.0 / A[115]); }
+    { double acc = w[23]; acc -= A[121] * w[15]; acc -= A[122] * w[16]; acc -= A[123] * w[17]; acc -= A[124] * w[18]; acc -= A[125] * w[19]; acc -= A[126] * w[20]; acc -= A[127] * w[21]; acc -= A[128] * w[22]; w[23] = acc * (1.0 / A[129]); }
+    { double acc = w[24]; acc -= A[134] * w[15]; acc -= A[135] * w[16]; acc -= A[136] * w[17]; acc -= A[137] * w[18]; acc -= A[138] * w[19]; acc -= A[139] * w[20]; acc -= A[140] * w[21]; acc -= A[141] * w[22]; acc -= A[142] * w[23]; w[24] = acc * (1.0 / A[143]); }
+    { double acc = w[25]; acc -= A[147] * w[15]; acc -= A[148] * w[16]; acc -= A[149] * w[17]; acc -= A[150] * w[18]; acc -= A[151] * w[19]; acc -= A[152] * w[20]; acc -= A[153] * w[21]; acc -= A[154] * w[22]; acc -= A[155] * w[23]; acc -= A[156] * w[24]; w[25] = acc * (1.0 / A[157]); }
+    { double acc = w[26]; acc -= A[160] * w[15]; acc -= A[161] * w[16]; acc -= A[162] * w[17]; acc -= A[163] * w[18]; acc -= A[164] * w[19]; acc -= A[165] * w[20]; acc -= A[166] * w[21]; acc -= A[167] * w[22]; acc -= A[168] * w[23]; acc -= A[169] * w[24]; acc -= A[170] * w[25]; w[26] = acc * (1.0 / A[171]); }
+    { double acc = w[27]; acc -= A[173] * w[15]; acc -= A[174] * w[16]; acc -= A[175] * w[17]; acc -= A[176] * w[18]; acc -= A[177] * w[19]; acc -= A[178] * w[20]; acc -= A[179] * w[21]; acc -= A[180] * w[22]; acc -= A[181] * w[23]; acc -= A[182] * w[24]; acc -= A[183] * w[25]; acc -= A[184] * w[26]; w[27] = acc * (1.0 / A[185]); }
+    { double acc = w[26]; acc -= A[172] * w[27]; w[26] = acc; }
+    { double acc = w[25]; acc -= A[158] * w[26]; acc -= A[159] * w[27]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[144] * w[25]; acc -= A[145] * w[26]; acc -= A[146] * w[27]; w[24] = acc; }
+    { double acc = w[23]; acc -= A[130] * w[24]; acc -= A[131] * w[25]; acc -= A[132] * w[26]; acc -= A[133] * w[27]; w[23] = acc; }
+    { double acc = w[22]; acc -= A[116] * w[23]; acc -= A[117] * w[24]; acc -= A[118] * w[25]; acc -= A[119] * w[26]; acc -= A[120] * w[27]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[102] * w[22]; acc -= A[103] * w[23]; acc -= A[104] * w[24]; acc -= A[105] * w[25]; acc -= A[106] * w[26]; acc -= A[107] * w[27]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[88] * w[21]; acc -= A[89] * w[22]; acc -= A[90] * w[23]; acc -= A[91] * w[24]; acc -= A[92] * w[25]; acc -= A[93] * w[26]; acc -= A[94] * w[27]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[74] * w[20]; acc -= A[75] * w[21]; acc -= A[76] * w[22]; acc -= A[77] * w[23]; acc -= A[78] * w[24]; acc -= A[79] * w[25]; acc -= A[80] * w[26]; acc -= A[81] * w[27]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[60] * w[19]; acc -= A[61] * w[20]; acc -= A[62] * w[21]; acc -= A[63] * w[22]; acc -= A[64] * w[23]; acc -= A[65] * w[24]; acc -= A[66] * w[25]; acc -= A[67] * w[26]; acc -= A[68] * w[27]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[32] * w[17]; acc -= A[33] * w[18]; acc -= A[34] * w[19]; acc -= A[35] * w[20]; acc -= A[36] * w[21]; acc -= A[37] * w[22]; acc -= A[38] * w[23]; acc -= A[39] * w[24]; acc -= A[40] * w[25]; acc -= A[41] * w[26]; acc -= A[42] * w[27]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; acc -= A[29] * w[27]; w[15] = acc; }
+    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
+    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    w[3] -= off[29] * w[15];
+    w[4] -= off[30] * w[15];
+    w[5] -= off[31] * w[15];
+    w[3] -= off[32] * w[16];
+    w[4] -= off[33] * w[16];
+    w[5] -= off[34] * w[16];
+    w[9] -= off[35] * w[17];
+    w[6] -= off[36] * w[18];
+}
+static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
+    w[1] -= off[26] * w[14];
+    w[3] -= off[27] * w[14];
+    w[5] -= off[28] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[15]); }
+    w[0] -= off[23] * w[13];
+    w[4] -= off[24] * w[13];
+    w[5] -= off[25] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[14]); }
+    w[1] -= off[20] * w[12];
+    w[3] -= off[21] * w[12];
+    w[5] -= off[22] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[13]); }
+    w[0] -= off[17] * w[11];
+    w[4] -= off[18] * w[11];
+    w[5] -= off[19] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[12]); }
+    w[1] -= off[14] * w[10];
+    w[3] -= off[15] * w[10];
+    w[5] -= off[16] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[11]); }
+    w[0] -= off[11] * w[9];
+    w[4] -= off[12] * w[9];
+    w[5] -= off[13] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
+    w[2] -= off[8] * w[8];
+    w[3] -= off[9] * w[8];
+    w[4] -= off[10] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
+    w[2] -= off[5] * w[7];
+    w[3] -= off[6] * w[7];
+    w[4] -= off[7] * w[7];
+    { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
+    w[2] -= off[2] * w[6];
+    w[3] -= off[3] * w[6];
+    w[4] -= off[4] * w[6];
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    w[3] -= off[0] * w[5];
+    w[4] -= off[1] * w[5];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
+    solve_transposed_level_cut_0(A, off, piv, w);
+    solve_transposed_level_cut_1(A, off, piv, w);
+    solve_transposed_level_cut_2(A, off, piv, w);
+    solve_transposed_level_cut_3(A, off, piv, w);
+    solve_transposed_level_cut_4(A, off, piv, w);
+    for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
+}
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11713,7 +12488,7 @@ const kinegen_model excavator_dual_quaternion_level_cut = {
     .row_order = row_order_level_cut, .col_order = col_order_level_cut,
     .n_store = 392, .n_diag = 249, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 190, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -11749,7 +12524,7 @@ const kinegen_model excavator_dual_quaternion_trench_wall = {
     .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
     .n_store = 392, .n_diag = 249, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 190, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -11785,7 +12560,7 @@ const kinegen_model excavator_dual_quaternion_bucket_toggle = {
     .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 179, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -11821,7 +12596,7 @@ const kinegen_model excavator_dual_quaternion_bucket_stroke = {
     .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 179, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -11857,7 +12632,7 @@ const kinegen_model excavator_dual_quaternion_bucket_near_toggle = {
     .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 179, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -11893,7 +12668,7 @@ const kinegen_model excavator_dual_quaternion_digging_fast = {
     .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 179, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -11929,7 +12704,7 @@ const kinegen_model excavator_dual_quaternion_digging_paced = {
     .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 179, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -11965,7 +12740,7 @@ const kinegen_model excavator_dual_quaternion_oscillation = {
     .row_order = row_order_oscillation, .col_order = col_order_oscillation,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 179, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_quaternion.h': 'eddb37a94c4d2312fe4536a243d5f5d83c88a2b9b0b003561d59e0094b4b0c96', 'excavator_dual_quaternion.c': '654c33e79a2b1c9ae05bcd62a58b42c2dbd1cee2e41e360e192e06ee1f38e85b'}
+C_FILES = {'excavator_dual_quaternion.h': 'eddb37a94c4d2312fe4536a243d5f5d83c88a2b9b0b003561d59e0094b4b0c96', 'excavator_dual_quaternion.c': '2f2277769b3e224128b49d593979f5bb47885bcf81bfd16d4727a37b8ea83d2d'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -10836,6 +10836,560 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     solve_digging_7(A, off, piv, b, y);
     for (int j = 0; j < 98; ++j) x[col_order_digging[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_digging) */
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[94]; w[94] = acc * (1.0 / A[594]); }
+    { double acc = w[95]; acc -= A[598] * w[94]; w[95] = acc * (1.0 / A[599]); }
+    { double acc = w[96]; acc -= A[602] * w[94]; acc -= A[603] * w[95]; w[96] = acc * (1.0 / A[604]); }
+    { double acc = w[97]; acc -= A[606] * w[94]; acc -= A[607] * w[95]; acc -= A[608] * w[96]; w[97] = acc * (1.0 / A[609]); }
+    { double acc = w[96]; acc -= A[605] * w[97]; w[96] = acc; }
+    { double acc = w[95]; acc -= A[600] * w[96]; acc -= A[601] * w[97]; w[95] = acc; }
+    { double acc = w[94]; acc -= A[595] * w[95]; acc -= A[596] * w[96]; acc -= A[597] * w[97]; w[94] = acc; }
+    { int p = 94 + piv[97]; double t = w[97]; w[97] = w[p]; w[p] = t; }
+    { int p = 94 + piv[96]; double t = w[96]; w[96] = w[p]; w[p] = t; }
+    { int p = 94 + piv[95]; double t = w[95]; w[95] = w[p]; w[p] = t; }
+    { int p = 94 + piv[94]; double t = w[94]; w[94] = w[p]; w[p] = t; }
+    w[74] -= off[285] * w[94];
+    w[75] -= off[286] * w[94];
+    w[80] -= off[287] * w[94];
+    w[82] -= off[288] * w[94];
+    w[74] -= off[289] * w[95];
+    w[75] -= off[290] * w[95];
+    w[80] -= off[291] * w[95];
+    w[82] -= off[292] * w[95];
+    w[74] -= off[293] * w[96];
+    w[75] -= off[294] * w[96];
+    w[80] -= off[295] * w[96];
+    w[82] -= off[296] * w[96];
+}
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[83]; w[83] = acc * (1.0 / A[473]); }
+    { double acc = w[84]; acc -= A[484] * w[83]; w[84] = acc * (1.0 / A[485]); }
+    { double acc = w[85]; acc -= A[495] * w[83]; acc -= A[496] * w[84]; w[85] = acc * (1.0 / A[497]); }
+    { double acc = w[86]; acc -= A[506] * w[83]; acc -= A[507] * w[84]; acc -= A[508] * w[85]; w[86] = acc * (1.0 / A[509]); }
+    { double acc = w[87]; acc -= A[517] * w[83]; acc -= A[518] * w[84]; acc -= A[519] * w[85]; acc -= A[520] * w[86]; w[87] = acc * (1.0 / A[521]); }
+    { double acc = w[88]; acc -= A[528] * w[83]; acc -= A[529] * w[84]; acc -= A[530] * w[85]; acc -= A[531] * w[86]; acc -= A[532] * w[87]; w[88] = acc * (1.0 / A[533]); }
+    { double acc = w[89]; acc -= A[539] * w[83]; acc -= A[540] * w[84]; acc -= A[541] * w[85]; acc -= A[542] * w[86]; acc -= A[543] * w[87]; acc -= A[544] * w[88]; w[89] = acc * (1.0 / A[545]); }
+    { double acc = w[90]; acc -= A[550] * w[83]; acc -= A[551] * w[84]; acc -= A[552] * w[85]; acc -= A[553] * w[86]; acc -= A[554] * w[87]; acc -= A[555] * w[88]; acc -= A[556] * w[89]; w[90] = acc * (1.0 / A[557]); }
+    { double acc = w[91]; acc -= A[561] * w[83]; acc -= A[562] * w[84]; acc -= A[563] * w[85]; acc -= A[564] * w[86]; acc -= A[565] * w[87]; acc -= A[566] * w[88]; acc -= A[567] * w[89]; acc -= A[568] * w[90]; w[91] = acc * (1.0 / A[569]); }
+    { double acc = w[92]; acc -= A[572] * w[83]; acc -= A[573] * w[84]; acc -= A[574] * w[85]; acc -= A[575] * w[86]; acc -= A[576] * w[87]; acc -= A[577] * w[88]; acc -= A[578] * w[89]; acc -= A[579] * w[90]; acc -= A[580] * w[91]; w[92] = acc * (1.0 / A[581]); }
+    { double acc = w[93]; acc -= A[583] * w[83]; acc -= A[584] * w[84]; acc -= A[585] * w[85]; acc -= A[586] * w[86]; acc -= A[587] * w[87]; acc -= A[588] * w[88]; acc -= A[589] * w[89]; acc -= A[590] * w[90]; acc -= A[591] * w[91]; acc -= A[592] * w[92]; w[93] = acc * (1.0 / A[593]); }
+    { double acc = w[92]; acc -= A[582] * w[93]; w[92] = acc; }
+    { double acc = w[91]; acc -= A[570] * w[92]; acc -= A[571] * w[93]; w[91] = acc; }
+    { double acc = w[90]; acc -= A[558] * w[91]; acc -= A[559] * w[92]; acc -= A[560] * w[93]; w[90] = acc; }
+    { double acc = w[89]; acc -= A[546] * w[90]; acc -= A[547] * w[91]; acc -= A[548] * w[92]; acc -= A[549] * w[93]; w[89] = acc; }
+    { double acc = w[88]; acc -= A[534] * w[89]; acc -= A[535] * w[90]; acc -= A[536] * w[91]; acc -= A[537] * w[92]; acc -= A[538] * w[93]; w[88] = acc; }
+    { double acc = w[87]; acc -= A[522] * w[88]; acc -= A[523] * w[89]; acc -= A[524] * w[90]; acc -= A[525] * w[91]; acc -= A[526] * w[92]; acc -= A[527] * w[93]; w[87] = acc; }
+    { double acc = w[86]; acc -= A[510] * w[87]; acc -= A[511] * w[88]; acc -= A[512] * w[89]; acc -= A[513] * w[90]; acc -= A[514] * w[91]; acc -= A[515] * w[92]; acc -= A[516] * w[93]; w[86] = acc; }
+    { double acc = w[85]; acc -= A[498] * w[86]; acc -= A[499] * w[87]; acc -= A[500] * w[88]; acc -= A[501] * w[89]; acc -= A[502] * w[90]; acc -= A[503] * w[91]; acc -= A[504] * w[92]; acc -= A[505] * w[93]; w[85] = acc; }
+    { double acc = w[84]; acc -= A[486] * w[85]; acc -= A[487] * w[86]; acc -= A[488] * w[87]; acc -= A[489] * w[88]; acc -= A[490] * w[89]; acc -= A[491] * w[90]; acc -= A[492] * w[91]; acc -= A[493] * w[92]; acc -= A[494] * w[93]; w[84] = acc; }
+    { double acc = w[83]; acc -= A[474] * w[84]; acc -= A[475] * w[85]; acc -= A[476] * w[86]; acc -= A[477] * w[87]; acc -= A[478] * w[88]; acc -= A[479] * w[89]; acc -= A[480] * w[90]; acc -= A[481] * w[91]; acc -= A[482] * w[92]; acc -= A[483] * w[93]; w[83] = acc; }
+    { int p = 83 + piv[93]; double t = w[93]; w[93] = w[p]; w[p] = t; }
+    { int p = 83 + piv[92]; double t = w[92]; w[92] = w[p]; w[p] = t; }
+    { int p = 83 + piv[91]; double t = w[91]; w[91] = w[p]; w[p] = t; }
+    { int p = 83 + piv[90]; double t = w[90]; w[90] = w[p]; w[p] = t; }
+    { int p = 83 + piv[89]; double t = w[89]; w[89] = w[p]; w[p] = t; }
+    { int p = 83 + piv[88]; double t = w[88]; w[88] = w[p]; w[p] = t; }
+    { int p = 83 + piv[87]; double t = w[87]; w[87] = w[p]; w[p] = t; }
+    { int p = 83 + piv[86]; double t = w[86]; w[86] = w[p]; w[p] = t; }
+    { int p = 83 + piv[85]; double t = w[85]; w[85] = w[p]; w[p] = t; }
+    { int p = 83 + piv[84]; double t = w[84]; w[84] = w[p]; w[p] = t; }
+    { int p = 83 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    w[44] -= off[259] * w[83];
+    w[45] -= off[260] * w[83];
+    w[49] -= off[261] * w[83];
+    w[52] -= off[262] * w[83];
+    w[44] -= off[263] * w[84];
+    w[45] -= off[264] * w[84];
+    w[49] -= off[265] * w[84];
+    w[52] -= off[266] * w[84];
+    w[71] -= off[267] * w[85];
+    w[72] -= off[268] * w[85];
+    w[73] -= off[269] * w[85];
+    w[77] -= off[270] * w[85];
+    w[81] -= off[271] * w[85];
+    w[67] -= off[272] * w[86];
+    w[72] -= off[273] * w[86];
+    w[73] -= off[274] * w[86];
+    w[77] -= off[275] * w[86];
+    w[81] -= off[276] * w[86];
+    w[66] -= off[277] * w[87];
+    w[72] -= off[278] * w[87];
+    w[73] -= off[279] * w[87];
+    w[77] -= off[280] * w[87];
+    w[81] -= off[281] * w[87];
+    w[63] -= off[282] * w[88];
+    w[64] -= off[283] * w[89];
+    w[65] -= off[284] * w[90];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[72]; w[72] = acc * (1.0 / A[352]); }
+    { double acc = w[73]; acc -= A[363] * w[72]; w[73] = acc * (1.0 / A[364]); }
+    { double acc = w[74]; acc -= A[374] * w[72]; acc -= A[375] * w[73]; w[74] = acc * (1.0 / A[376]); }
+    { double acc = w[75]; acc -= A[385] * w[72]; acc -= A[386] * w[73]; acc -= A[387] * w[74]; w[75] = acc * (1.0 / A[388]); }
+    { double acc = w[76]; acc -= A[396] * w[72]; acc -= A[397] * w[73]; acc -= A[398] * w[74]; acc -= A[399] * w[75]; w[76] = acc * (1.0 / A[400]); }
+    { double acc = w[77]; acc -= A[407] * w[72]; acc -= A[408] * w[73]; acc -= A[409] * w[74]; acc -= A[410] * w[75]; acc -= A[411] * w[76]; w[77] = acc * (1.0 / A[412]); }
+    { double acc = w[78]; acc -= A[418] * w[72]; acc -= A[419] * w[73]; acc -= A[420] * w[74]; acc -= A[421] * w[75]; acc -= A[422] * w[76]; acc -= A[423] * w[77]; w[78] = acc * (1.0 / A[424]); }
+    { double acc = w[79]; acc -= A[429] * w[72]; acc -= A[430] * w[73]; acc -= A[431] * w[74]; acc -= A[432] * w[75]; acc -= A[433] * w[76]; acc -= A[434] * w[77]; acc -= A[435] * w[78]; w[79] = acc * (1.0 / A[436]); }
+    { double acc = w[80]; acc -= A[440] * w[72]; acc -= A[441] * w[73]; acc -= A[442] * w[74]; acc -= A[443] * w[75]; acc -= A[444] * w[76]; acc -= A[445] * w[77]; acc -= A[446] * w[78]; acc -= A[447] * w[79]; w[80] = acc * (1.0 / A[448]); }
+    { double acc = w[81]; acc -= A[451] * w[72]; acc -= A[452] * w[73]; acc -= A[453] * w[74]; acc -= A[454] * w[75]; acc -= A[455] * w[76]; acc -= A[456] * w[77]; acc -= A[457] * w[78]; acc -= A[458] * w[79]; acc -= A[459] * w[80]; w[81] = acc * (1.0 / A[460]); }
+    { double acc = w[82]; acc -= A[462] * w[72]; acc -= A[463] * w[73]; acc -= A[464] * w[74]; acc -= A[465] * w[75]; acc -= A[466] * w[76]; acc -= A[467] * w[77]; acc -= A[468] * w[78]; acc -= A[469] * w[79]; acc -= A[470] * w[80]; acc -= A[471] * w[81]; w[82] = acc * (1.0 / A[472]); }
+    { double acc = w[81]; acc -= A[461] * w[82]; w[81] = acc; }
+    { double acc = w[80]; acc -= A[449] * w[81]; acc -= A[450] * w[82]; w[80] = acc; }
+    { double acc = w[79]; acc -= A[437] * w[80]; acc -= A[438] * w[81]; acc -= A[439] * w[82]; w[79] = acc; }
+    { double acc = w[78]; acc -= A[425] * w[79]; acc -= A[426] * w[80]; acc -= A[427] * w[81]; acc -= A[428] * w[82]; w[78] = acc; }
+    { double acc = w[77]; acc -= A[413] * w[78]; acc -= A[414] * w[79]; acc -= A[415] * w[80]; acc -= A[416] * w[81]; acc -= A[417] * w[82]; w[77] = acc; }
+    { double acc = w[76]; acc -= A[401] * w[77]; acc -= A[402] * w[78]; acc -= A[403] * w[79]; acc -= A[404] * w[80]; acc -= A[405] * w[81]; acc -= A[406] * w[82]; w[76] = acc; }
+    { double acc = w[75]; acc -= A[389] * w[76]; acc -= A[390] * w[77]; acc -= A[391] * w[78]; acc -= A[392] * w[79]; acc -= A[393] * w[80]; acc -= A[394] * w[81]; acc -= A[395] * w[82]; w[75] = acc; }
+    { double acc = w[74]; acc -= A[377] * w[75]; acc -= A[378] * w[76]; acc -= A[379] * w[77]; acc -= A[380] * w[78]; acc -= A[381] * w[79]; acc -= A[382] * w[80]; acc -= A[383] * w[81]; acc -= A[384] * w[82]; w[74] = acc; }
+    { double acc = w[73]; acc -= A[365] * w[74]; acc -= A[366] * w[75]; acc -= A[367] * w[76]; acc -= A[368] * w[77]; acc -= A[369] * w[78]; acc -= A[370] * w[79]; acc -= A[371] * w[80]; acc -= A[372] * w[81]; acc -= A[373] * w[82]; w[73] = acc; }
+    { double acc = w[72]; acc -= A[353] * w[73]; acc -= A[354] * w[74]; acc -= A[355] * w[75]; acc -= A[356] * w[76]; acc -= A[357] * w[77]; acc -= A[358] * w[78]; acc -= A[359] * w[79]; acc -= A[360] * w[80]; acc -= A[361] * w[81]; acc -= A[362] * w[82]; w[72] = acc; }
+    { int p = 72 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 72 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
+    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
+    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
+    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    w[44] -= off[235] * w[72];
+    w[45] -= off[236] * w[72];
+    w[49] -= off[237] * w[72];
+    w[52] -= off[238] * w[72];
+    w[44] -= off[239] * w[73];
+    w[45] -= off[240] * w[73];
+    w[49] -= off[241] * w[73];
+    w[52] -= off[242] * w[73];
+    w[44] -= off[243] * w[74];
+    w[45] -= off[244] * w[74];
+    w[49] -= off[245] * w[74];
+    w[52] -= off[246] * w[74];
+    w[68] -= off[247] * w[75];
+    w[69] -= off[248] * w[75];
+    w[70] -= off[249] * w[75];
+    w[68] -= off[250] * w[76];
+    w[69] -= off[251] * w[76];
+    w[70] -= off[252] * w[76];
+    w[71] -= off[253] * w[77];
+    w[67] -= off[254] * w[78];
+    w[66] -= off[255] * w[79];
+    w[68] -= off[256] * w[82];
+    w[69] -= off[257] * w[82];
+    w[70] -= off[258] * w[82];
+    { double acc = w[71]; w[71] = acc * (1.0 / A[351]); }
+    w[34] -= off[230] * w[71];
+    w[44] -= off[231] * w[71];
+    w[45] -= off[232] * w[71];
+    w[49] -= off[233] * w[71];
+    w[52] -= off[234] * w[71];
+    { double acc = w[70]; w[70] = acc * (1.0 / A[350]); }
+    w[34] -= off[225] * w[70];
+    w[44] -= off[226] * w[70];
+    w[45] -= off[227] * w[70];
+    w[49] -= off[228] * w[70];
+    w[52] -= off[229] * w[70];
+    { double acc = w[69]; w[69] = acc * (1.0 / A[349]); }
+    w[35] -= off[220] * w[69];
+    w[44] -= off[221] * w[69];
+    w[45] -= off[222] * w[69];
+    w[49] -= off[223] * w[69];
+    w[52] -= off[224] * w[69];
+    { double acc = w[68]; w[68] = acc * (1.0 / A[348]); }
+    w[36] -= off[215] * w[68];
+    w[44] -= off[216] * w[68];
+    w[45] -= off[217] * w[68];
+    w[49] -= off[218] * w[68];
+    w[52] -= off[219] * w[68];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[67]; w[67] = acc * (1.0 / A[347]); }
+    w[35] -= off[210] * w[67];
+    w[44] -= off[211] * w[67];
+    w[45] -= off[212] * w[67];
+    w[49] -= off[213] * w[67];
+    w[52] -= off[214] * w[67];
+    { double acc = w[66]; w[66] = acc * (1.0 / A[346]); }
+    w[36] -= off[205] * w[66];
+    w[44] -= off[206] * w[66];
+    w[45] -= off[207] * w[66];
+    w[49] -= off[208] * w[66];
+    w[52] -= off[209] * w[66];
+    { double acc = w[65]; w[65] = acc * (1.0 / A[345]); }
+    w[36] -= off[200] * w[65];
+    w[44] -= off[201] * w[65];
+    w[45] -= off[202] * w[65];
+    w[49] -= off[203] * w[65];
+    w[52] -= off[204] * w[65];
+    { double acc = w[64]; w[64] = acc * (1.0 / A[344]); }
+    w[35] -= off[195] * w[64];
+    w[44] -= off[196] * w[64];
+    w[45] -= off[197] * w[64];
+    w[49] -= off[198] * w[64];
+    w[52] -= off[199] * w[64];
+    { double acc = w[63]; w[63] = acc * (1.0 / A[343]); }
+    w[34] -= off[190] * w[63];
+    w[44] -= off[191] * w[63];
+    w[45] -= off[192] * w[63];
+    w[49] -= off[193] * w[63];
+    w[52] -= off[194] * w[63];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[327]); }
+    { double acc = w[60]; acc -= A[331] * w[59]; w[60] = acc * (1.0 / A[332]); }
+    { double acc = w[61]; acc -= A[335] * w[59]; acc -= A[336] * w[60]; w[61] = acc * (1.0 / A[337]); }
+    { double acc = w[62]; acc -= A[339] * w[59]; acc -= A[340] * w[60]; acc -= A[341] * w[61]; w[62] = acc * (1.0 / A[342]); }
+    { double acc = w[61]; acc -= A[338] * w[62]; w[61] = acc; }
+    { double acc = w[60]; acc -= A[333] * w[61]; acc -= A[334] * w[62]; w[60] = acc; }
+    { double acc = w[59]; acc -= A[328] * w[60]; acc -= A[329] * w[61]; acc -= A[330] * w[62]; w[59] = acc; }
+    { int p = 59 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { int p = 59 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
+    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
+    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    w[46] -= off[178] * w[59];
+    w[47] -= off[179] * w[59];
+    w[53] -= off[180] * w[59];
+    w[54] -= off[181] * w[59];
+    w[46] -= off[182] * w[60];
+    w[47] -= off[183] * w[60];
+    w[53] -= off[184] * w[60];
+    w[54] -= off[185] * w[60];
+    w[46] -= off[186] * w[61];
+    w[47] -= off[187] * w[61];
+    w[53] -= off[188] * w[61];
+    w[54] -= off[189] * w[61];
+    { double acc = w[55]; w[55] = acc * (1.0 / A[311]); }
+    { double acc = w[56]; acc -= A[315] * w[55]; w[56] = acc * (1.0 / A[316]); }
+    { double acc = w[57]; acc -= A[319] * w[55]; acc -= A[320] * w[56]; w[57] = acc * (1.0 / A[321]); }
+    { double acc = w[58]; acc -= A[323] * w[55]; acc -= A[324] * w[56]; acc -= A[325] * w[57]; w[58] = acc * (1.0 / A[326]); }
+    { double acc = w[57]; acc -= A[322] * w[58]; w[57] = acc; }
+    { double acc = w[56]; acc -= A[317] * w[57]; acc -= A[318] * w[58]; w[56] = acc; }
+    { double acc = w[55]; acc -= A[312] * w[56]; acc -= A[313] * w[57]; acc -= A[314] * w[58]; w[55] = acc; }
+    { int p = 55 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
+    { int p = 55 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
+    { int p = 55 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    { int p = 55 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
+    w[40] -= off[166] * w[55];
+    w[41] -= off[167] * w[55];
+    w[42] -= off[168] * w[55];
+    w[43] -= off[169] * w[55];
+    w[40] -= off[170] * w[56];
+    w[41] -= off[171] * w[56];
+    w[42] -= off[172] * w[56];
+    w[43] -= off[173] * w[56];
+    w[40] -= off[174] * w[57];
+    w[41] -= off[175] * w[57];
+    w[42] -= off[176] * w[57];
+    w[43] -= off[177] * w[57];
+}
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[44]; w[44] = acc * (1.0 / A[190]); }
+    { double acc = w[45]; acc -= A[201] * w[44]; w[45] = acc * (1.0 / A[202]); }
+    { double acc = w[46]; acc -= A[212] * w[44]; acc -= A[213] * w[45]; w[46] = acc * (1.0 / A[214]); }
+    { double acc = w[47]; acc -= A[223] * w[44]; acc -= A[224] * w[45]; acc -= A[225] * w[46]; w[47] = acc * (1.0 / A[226]); }
+    { double acc = w[48]; acc -= A[234] * w[44]; acc -= A[235] * w[45]; acc -= A[236] * w[46]; acc -= A[237] * w[47]; w[48] = acc * (1.0 / A[238]); }
+    { double acc = w[49]; acc -= A[245] * w[44]; acc -= A[246] * w[45]; acc -= A[247] * w[46]; acc -= A[248] * w[47]; acc -= A[249] * w[48]; w[49] = acc * (1.0 / A[250]); }
+    { double acc = w[50]; acc -= A[256] * w[44]; acc -= A[257] * w[45]; acc -= A[258] * w[46]; acc -= A[259] * w[47]; acc -= A[260] * w[48]; acc -= A[261] * w[49]; w[50] = acc * (1.0 / A[262]); }
+    { double acc = w[51]; acc -= A[267] * w[44]; acc -= A[268] * w[45]; acc -= A[269] * w[46]; acc -= A[270] * w[47]; acc -= A[271] * w[48]; acc -= A[272] * w[49]; acc -= A[273] * w[50]; w[51] = acc * (1.0 / A[274]); }
+    { double acc = w[52]; acc -= A[278] * w[44]; acc -= A[279] * w[45]; acc -= A[280] * w[46]; acc -= A[281] * w[47]; acc -= A[282] * w[48]; acc -= A[283] * w[49]; acc -= A[284] * w[50]; acc -= A[285] * w[51]; w[52] = acc * (1.0 / A[286]); }
+    { double acc = w[53]; acc -= A[289] * w[44]; acc -= A[290] * w[45]; acc -= A[291] * w[46]; acc -= A[292] * w[47]; acc -= A[293] * w[48]; acc -= A[294] * w[49]; acc -= A[295] * w[50]; acc -= A[296] * w[51]; acc -= A[297] * w[52]; w[53] = acc * (1.0 / A[298]); }
+    { double acc = w[54]; acc -= A[300] * w[44]; acc -= A[301] * w[45]; acc -= A[302] * w[46]; acc -= A[303] * w[47]; acc -= A[304] * w[48]; acc -= A[305] * w[49]; acc -= A[306] * w[50]; acc -= A[307] * w[51]; acc -= A[308] * w[52]; acc -= A[309] * w[53]; w[54] = acc * (1.0 / A[310]); }
+    { double acc = w[53]; acc -= A[299] * w[54]; w[53] = acc; }
+    { double acc = w[52]; acc -= A[287] * w[53]; acc -= A[288] * w[54]; w[52] = acc; }
+    { double acc = w[51]; acc -= A[275] * w[52]; acc -= A[276] * w[53]; acc -= A[277] * w[54]; w[51] = acc; }
+    { double acc = w[50]; acc -= A[263] * w[51]; acc -= A[264] * w[52]; acc -= A[265] * w[53]; acc -= A[266] * w[54]; w[50] = acc; }
+    { double acc = w[49]; acc -= A[251] * w[50]; acc -= A[252] * w[51]; acc -= A[253] * w[52]; acc -= A[254] * w[53]; acc -= A[255] * w[54]; w[49] = acc; }
+    { double acc = w[48]; acc -= A[239] * w[49]; acc -= A[240] * w[50]; acc -= A[241] * w[51]; acc -= A[242] * w[52]; acc -= A[243] * w[53]; acc -= A[244] * w[54]; w[48] = acc; }
+    { double acc = w[47]; acc -= A[227] * w[48]; acc -= A[228] * w[49]; acc -= A[229] * w[50]; acc -= A[230] * w[51]; acc -= A[231] * w[52]; acc -= A[232] * w[53]; acc -= A[233] * w[54]; w[47] = acc; }
+    { double acc = w[46]; acc -= A[215] * w[47]; acc -= A[216] * w[48]; acc -= A[217] * w[49]; acc -= A[218] * w[50]; acc -= A[219] * w[51]; acc -= A[220] * w[52]; acc -= A[221] * w[53]; acc -= A[222] * w[54]; w[46] = acc; }
+    { double acc = w[45]; acc -= A[203] * w[46]; acc -= A[204] * w[47]; acc -= A[205] * w[48]; acc -= A[206] * w[49]; acc -= A[207] * w[50]; acc -= A[208] * w[51]; acc -= A[209] * w[52]; acc -= A[210] * w[53]; acc -= A[211] * w[54]; w[45] = acc; }
+    { double acc = w[44]; acc -= A[191] * w[45]; acc -= A[192] * w[46]; acc -= A[193] * w[47]; acc -= A[194] * w[48]; acc -= A[195] * w[49]; acc -= A[196] * w[50]; acc -= A[197] * w[51]; acc -= A[198] * w[52]; acc -= A[199] * w[53]; acc -= A[200] * w[54]; w[44] = acc; }
+    { int p = 44 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
+    { int p = 44 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
+    { int p = 44 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
+    { int p = 44 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { int p = 44 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    { int p = 44 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { int p = 44 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { int p = 44 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
+    { int p = 44 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { int p = 44 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
+    { int p = 44 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
+    w[16] -= off[142] * w[44];
+    w[17] -= off[143] * w[44];
+    w[21] -= off[144] * w[44];
+    w[24] -= off[145] * w[44];
+    w[16] -= off[146] * w[45];
+    w[17] -= off[147] * w[45];
+    w[21] -= off[148] * w[45];
+    w[24] -= off[149] * w[45];
+    w[16] -= off[150] * w[46];
+    w[17] -= off[151] * w[46];
+    w[21] -= off[152] * w[46];
+    w[24] -= off[153] * w[46];
+    w[37] -= off[154] * w[47];
+    w[38] -= off[155] * w[47];
+    w[39] -= off[156] * w[47];
+    w[37] -= off[157] * w[48];
+    w[38] -= off[158] * w[48];
+    w[39] -= off[159] * w[48];
+    w[34] -= off[160] * w[49];
+    w[35] -= off[161] * w[50];
+    w[36] -= off[162] * w[51];
+    w[37] -= off[163] * w[54];
+    w[38] -= off[164] * w[54];
+    w[39] -= off[165] * w[54];
+}
+static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[40]; w[40] = acc * (1.0 / A[174]); }
+    { double acc = w[41]; acc -= A[178] * w[40]; w[41] = acc * (1.0 / A[179]); }
+    { double acc = w[42]; acc -= A[182] * w[40]; acc -= A[183] * w[41]; w[42] = acc * (1.0 / A[184]); }
+    { double acc = w[43]; acc -= A[186] * w[40]; acc -= A[187] * w[41]; acc -= A[188] * w[42]; w[43] = acc * (1.0 / A[189]); }
+    { double acc = w[42]; acc -= A[185] * w[43]; w[42] = acc; }
+    { double acc = w[41]; acc -= A[180] * w[42]; acc -= A[181] * w[43]; w[41] = acc; }
+    { double acc = w[40]; acc -= A[175] * w[41]; acc -= A[176] * w[42]; acc -= A[177] * w[43]; w[40] = acc; }
+    { int p = 40 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
+    { int p = 40 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
+    { int p = 40 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
+    { int p = 40 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
+    w[3] -= off[126] * w[40];
+    w[4] -= off[127] * w[40];
+    w[5] -= off[128] * w[40];
+    w[6] -= off[129] * w[40];
+    w[13] -= off[130] * w[41];
+    w[14] -= off[131] * w[41];
+    w[15] -= off[132] * w[41];
+    w[31] -= off[133] * w[41];
+    w[32] -= off[134] * w[41];
+    w[33] -= off[135] * w[41];
+    w[13] -= off[136] * w[42];
+    w[14] -= off[137] * w[42];
+    w[15] -= off[138] * w[42];
+    w[31] -= off[139] * w[42];
+    w[32] -= off[140] * w[42];
+    w[33] -= off[141] * w[42];
+    { double acc = w[39]; w[39] = acc * (1.0 / A[173]); }
+    w[7] -= off[121] * w[39];
+    w[16] -= off[122] * w[39];
+    w[17] -= off[123] * w[39];
+    w[21] -= off[124] * w[39];
+    w[24] -= off[125] * w[39];
+    { double acc = w[38]; w[38] = acc * (1.0 / A[172]); }
+    w[8] -= off[116] * w[38];
+    w[16] -= off[117] * w[38];
+    w[17] -= off[118] * w[38];
+    w[21] -= off[119] * w[38];
+    w[24] -= off[120] * w[38];
+    { double acc = w[37]; w[37] = acc * (1.0 / A[171]); }
+    w[9] -= off[111] * w[37];
+    w[16] -= off[112] * w[37];
+    w[17] -= off[113] * w[37];
+    w[21] -= off[114] * w[37];
+    w[24] -= off[115] * w[37];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[170]); }
+    w[9] -= off[106] * w[36];
+    w[16] -= off[107] * w[36];
+    w[17] -= off[108] * w[36];
+    w[21] -= off[109] * w[36];
+    w[24] -= off[110] * w[36];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[169]); }
+    w[8] -= off[101] * w[35];
+    w[16] -= off[102] * w[35];
+    w[17] -= off[103] * w[35];
+    w[21] -= off[104] * w[35];
+    w[24] -= off[105] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[168]); }
+    w[7] -= off[96] * w[34];
+    w[16] -= off[97] * w[34];
+    w[17] -= off[98] * w[34];
+    w[21] -= off[99] * w[34];
+    w[24] -= off[100] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[167]); }
+    w[7] -= off[91] * w[33];
+    w[16] -= off[92] * w[33];
+    w[17] -= off[93] * w[33];
+    w[21] -= off[94] * w[33];
+    w[24] -= off[95] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[166]); }
+    w[8] -= off[86] * w[32];
+    w[16] -= off[87] * w[32];
+    w[17] -= off[88] * w[32];
+    w[21] -= off[89] * w[32];
+    w[24] -= off[90] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[165]); }
+    w[9] -= off[81] * w[31];
+    w[16] -= off[82] * w[31];
+    w[17] -= off[83] * w[31];
+    w[21] -= off[84] * w[31];
+    w[24] -= off[85] * w[31];
+    { double acc = w[27]; w[27] = acc * (1.0 / A[149]); }
+    { double acc = w[28]; acc -= A[153] * w[27]; w[28] = acc * (1.0 / A[154]); }
+    { double acc = w[29]; acc -= A[157] * w[27]; acc -= A[158] * w[28]; w[29] = acc * (1.0 / A[159]); }
+    { double acc = w[30]; acc -= A[161] * w[27]; acc -= A[162] * w[28]; acc -= A[163] * w[29]; w[30] = acc * (1.0 / A[164]); }
+    { double acc = w[29]; acc -= A[160] * w[30]; w[29] = acc; }
+    { double acc = w[28]; acc -= A[155] * w[29]; acc -= A[156] * w[30]; w[28] = acc; }
+    { double acc = w[27]; acc -= A[150] * w[28]; acc -= A[151] * w[29]; acc -= A[152] * w[30]; w[27] = acc; }
+    { int p = 27 + piv[30]; double t = w[30]; w[30] = w[p]; w[p] = t; }
+    { int p = 27 + piv[29]; double t = w[29]; w[29] = w[p]; w[p] = t; }
+    { int p = 27 + piv[28]; double t = w[28]; w[28] = w[p]; w[p] = t; }
+    { int p = 27 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
+    w[18] -= off[69] * w[27];
+    w[19] -= off[70] * w[27];
+    w[25] -= off[71] * w[27];
+    w[26] -= off[72] * w[27];
+    w[18] -= off[73] * w[28];
+    w[19] -= off[74] * w[28];
+    w[25] -= off[75] * w[28];
+    w[26] -= off[76] * w[28];
+    w[18] -= off[77] * w[29];
+    w[19] -= off[78] * w[29];
+    w[25] -= off[79] * w[29];
+    w[26] -= off[80] * w[29];
+}
+static void solve_transposed_digging_6(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[16]; w[16] = acc * (1.0 / A[28]); }
+    { double acc = w[17]; acc -= A[39] * w[16]; w[17] = acc * (1.0 / A[40]); }
+    { double acc = w[18]; acc -= A[50] * w[16]; acc -= A[51] * w[17]; w[18] = acc * (1.0 / A[52]); }
+    { double acc = w[19]; acc -= A[61] * w[16]; acc -= A[62] * w[17]; acc -= A[63] * w[18]; w[19] = acc * (1.0 / A[64]); }
+    { double acc = w[20]; acc -= A[72] * w[16]; acc -= A[73] * w[17]; acc -= A[74] * w[18]; acc -= A[75] * w[19]; w[20] = acc * (1.0 / A[76]); }
+    { double acc = w[21]; acc -= A[83] * w[16]; acc -= A[84] * w[17]; acc -= A[85] * w[18]; acc -= A[86] * w[19]; acc -= A[87] * w[20]; w[21] = acc * (1.0 / A[88]); }
+    { double acc = w[22]; acc -= A[94] * w[16]; acc -= A[95] * w[17]; acc -= A[96] * w[18]; acc -= A[97] * w[19]; acc -= A[98] * w[20]; acc -= A[99] * w[21]; w[22] = acc * (1.0 / A[100]); }
+    { double acc = w[23]; acc -= A[105] * w[16]; acc -= A[106] * w[17]; acc -= A[107] * w[18]; acc -= A[108] * w[19]; acc -= A[109] * w[20]; acc -= A[110] * w[21]; acc -= A[111] * w[22]; w[23] = acc * (1.0 / A[112]); }
+    { double acc = w[24]; acc -= A[116] * w[16]; acc -= A[117] * w[17]; acc -= A[118] * w[18]; acc -= A[119] * w[19]; acc -= A[120] * w[20]; acc -= A[121] * w[21]; acc -= A[122] * w[22]; acc -= A[123] * w[23]; w[24] = acc * (1.0 / A[124]); }
+    { double acc = w[25]; acc -= A[127] * w[16]; acc -= A[128] * w[17]; acc -= A[129] * w[18]; acc -= A[130] * w[19]; acc -= A[131] * w[20]; acc -= A[132] * w[21]; acc -= A[133] * w[22]; acc -= A[134] * w[23]; acc -= A[135] * w[24]; w[25] = acc * (1.0 / A[136]); }
+    { double acc = w[26]; acc -= A[138] * w[16]; acc -= A[139] * w[17]; acc -= A[140] * w[18]; acc -= A[141] * w[19]; acc -= A[142] * w[20]; acc -= A[143] * w[21]; acc -= A[144] * w[22]; acc -= A[145] * w[23]; acc -= A[146] * w[24]; acc -= A[147] * w[25]; w[26] = acc * (1.0 / A[148]); }
+    { double acc = w[25]; acc -= A[137] * w[26]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[125] * w[25]; acc -= A[126] * w[26]; w[24] = acc; }
+    { double acc = w[23]; acc -= A[113] * w[24]; acc -= A[114] * w[25]; acc -= A[115] * w[26]; w[23] = acc; }
+    { double acc = w[22]; acc -= A[101] * w[23]; acc -= A[102] * w[24]; acc -= A[103] * w[25]; acc -= A[104] * w[26]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[89] * w[22]; acc -= A[90] * w[23]; acc -= A[91] * w[24]; acc -= A[92] * w[25]; acc -= A[93] * w[26]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[77] * w[21]; acc -= A[78] * w[22]; acc -= A[79] * w[23]; acc -= A[80] * w[24]; acc -= A[81] * w[25]; acc -= A[82] * w[26]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[65] * w[20]; acc -= A[66] * w[21]; acc -= A[67] * w[22]; acc -= A[68] * w[23]; acc -= A[69] * w[24]; acc -= A[70] * w[25]; acc -= A[71] * w[26]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[53] * w[19]; acc -= A[54] * w[20]; acc -= A[55] * w[21]; acc -= A[56] * w[22]; acc -= A[57] * w[23]; acc -= A[58] * w[24]; acc -= A[59] * w[25]; acc -= A[60] * w[26]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[41] * w[18]; acc -= A[42] * w[19]; acc -= A[43] * w[20]; acc -= A[44] * w[21]; acc -= A[45] * w[22]; acc -= A[46] * w[23]; acc -= A[47] * w[24]; acc -= A[48] * w[25]; acc -= A[49] * w[26]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; acc -= A[33] * w[21]; acc -= A[34] * w[22]; acc -= A[35] * w[23]; acc -= A[36] * w[24]; acc -= A[37] * w[25]; acc -= A[38] * w[26]; w[16] = acc; }
+    { int p = 16 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 16 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 16 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { int p = 16 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 16 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 16 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 16 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 16 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 16 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 16 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 16 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    w[3] -= off[45] * w[16];
+    w[4] -= off[46] * w[16];
+    w[5] -= off[47] * w[16];
+    w[6] -= off[48] * w[16];
+    w[3] -= off[49] * w[17];
+    w[4] -= off[50] * w[17];
+    w[5] -= off[51] * w[17];
+    w[6] -= off[52] * w[17];
+    w[3] -= off[53] * w[18];
+    w[4] -= off[54] * w[18];
+    w[5] -= off[55] * w[18];
+    w[6] -= off[56] * w[18];
+    w[10] -= off[57] * w[19];
+    w[11] -= off[58] * w[19];
+    w[12] -= off[59] * w[19];
+    w[10] -= off[60] * w[20];
+    w[11] -= off[61] * w[20];
+    w[12] -= off[62] * w[20];
+    w[7] -= off[63] * w[21];
+    w[8] -= off[64] * w[22];
+    w[9] -= off[65] * w[23];
+    w[10] -= off[66] * w[26];
+    w[11] -= off[67] * w[26];
+    w[12] -= off[68] * w[26];
+    { double acc = w[15]; w[15] = acc * (1.0 / A[27]); }
+    w[2] -= off[40] * w[15];
+    w[3] -= off[41] * w[15];
+    w[4] -= off[42] * w[15];
+    w[5] -= off[43] * w[15];
+    w[6] -= off[44] * w[15];
+    { double acc = w[14]; w[14] = acc * (1.0 / A[26]); }
+    w[1] -= off[35] * w[14];
+    w[3] -= off[36] * w[14];
+    w[4] -= off[37] * w[14];
+    w[5] -= off[38] * w[14];
+    w[6] -= off[39] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[25]); }
+    w[0] -= off[30] * w[13];
+    w[3] -= off[31] * w[13];
+    w[4] -= off[32] * w[13];
+    w[5] -= off[33] * w[13];
+    w[6] -= off[34] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[24]); }
+    w[0] -= off[25] * w[12];
+    w[3] -= off[26] * w[12];
+    w[4] -= off[27] * w[12];
+    w[5] -= off[28] * w[12];
+    w[6] -= off[29] * w[12];
+}
+static void solve_transposed_digging_7(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[11]; w[11] = acc * (1.0 / A[23]); }
+    w[1] -= off[20] * w[11];
+    w[3] -= off[21] * w[11];
+    w[4] -= off[22] * w[11];
+    w[5] -= off[23] * w[11];
+    w[6] -= off[24] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
+    w[2] -= off[15] * w[10];
+    w[3] -= off[16] * w[10];
+    w[4] -= off[17] * w[10];
+    w[5] -= off[18] * w[10];
+    w[6] -= off[19] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[21]); }
+    w[2] -= off[10] * w[9];
+    w[3] -= off[11] * w[9];
+    w[4] -= off[12] * w[9];
+    w[5] -= off[13] * w[9];
+    w[6] -= off[14] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[20]); }
+    w[1] -= off[5] * w[8];
+    w[3] -= off[6] * w[8];
+    w[4] -= off[7] * w[8];
+    w[5] -= off[8] * w[8];
+    w[6] -= off[9] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
+    w[0] -= off[0] * w[7];
+    w[3] -= off[1] * w[7];
+    w[4] -= off[2] * w[7];
+    w[5] -= off[3] * w[7];
+    w[6] -= off[4] * w[7];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
+    { double acc = w[6]; acc -= A[15] * w[3]; acc -= A[16] * w[4]; acc -= A[17] * w[5]; w[6] = acc * (1.0 / A[18]); }
+    { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
+    { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
+    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 98; ++j) w[j] = c[col_order_digging[j]];
+    solve_transposed_digging_0(A, off, piv, w);
+    solve_transposed_digging_1(A, off, piv, w);
+    solve_transposed_digging_2(A, off, piv, w);
+    solve_transposed_digging_3(A, off, piv, w);
+    solve_transposed_digging_4(A, off, piv, w);
+    solve_transposed_digging_5(A, off, piv, w);
+    solve_transposed_digging_6(A, off, piv, w);
+    solve_transposed_digging_7(A, off, piv, w);
+    for (int i = 0; i < 98; ++i) x[row_order_digging[i]] = w[i];
+}
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10852,7 +11406,7 @@ const kinegen_model excavator_euler_parameters_digging = {
     .row_order = row_order_digging, .col_order = col_order_digging,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 297, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -11557,6 +12111,555 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     solve_level_cut_5(A, off, piv, b, y);
     for (int j = 0; j < 98; ++j) x[col_order_level_cut[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_level_cut) */
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[94]; w[94] = acc * (1.0 / A[486]); }
+    { double acc = w[95]; acc -= A[490] * w[94]; w[95] = acc * (1.0 / A[491]); }
+    { double acc = w[96]; acc -= A[494] * w[94]; acc -= A[495] * w[95]; w[96] = acc * (1.0 / A[496]); }
+    { double acc = w[97]; acc -= A[498] * w[94]; acc -= A[499] * w[95]; acc -= A[500] * w[96]; w[97] = acc * (1.0 / A[501]); }
+    { double acc = w[96]; acc -= A[497] * w[97]; w[96] = acc; }
+    { double acc = w[95]; acc -= A[492] * w[96]; acc -= A[493] * w[97]; w[95] = acc; }
+    { double acc = w[94]; acc -= A[487] * w[95]; acc -= A[488] * w[96]; acc -= A[489] * w[97]; w[94] = acc; }
+    { int p = 94 + piv[97]; double t = w[97]; w[97] = w[p]; w[p] = t; }
+    { int p = 94 + piv[96]; double t = w[96]; w[96] = w[p]; w[p] = t; }
+    { int p = 94 + piv[95]; double t = w[95]; w[95] = w[p]; w[p] = t; }
+    { int p = 94 + piv[94]; double t = w[94]; w[94] = w[p]; w[p] = t; }
+    w[90] -= off[303] * w[94];
+    w[91] -= off[304] * w[94];
+    w[92] -= off[305] * w[94];
+    w[93] -= off[306] * w[94];
+    w[90] -= off[307] * w[95];
+    w[91] -= off[308] * w[95];
+    w[92] -= off[309] * w[95];
+    w[93] -= off[310] * w[95];
+    w[90] -= off[311] * w[96];
+    w[91] -= off[312] * w[96];
+    w[92] -= off[313] * w[96];
+    w[93] -= off[314] * w[96];
+    { double acc = w[90]; w[90] = acc * (1.0 / A[470]); }
+    { double acc = w[91]; acc -= A[474] * w[90]; w[91] = acc * (1.0 / A[475]); }
+    { double acc = w[92]; acc -= A[478] * w[90]; acc -= A[479] * w[91]; w[92] = acc * (1.0 / A[480]); }
+    { double acc = w[93]; acc -= A[482] * w[90]; acc -= A[483] * w[91]; acc -= A[484] * w[92]; w[93] = acc * (1.0 / A[485]); }
+    { double acc = w[92]; acc -= A[481] * w[93]; w[92] = acc; }
+    { double acc = w[91]; acc -= A[476] * w[92]; acc -= A[477] * w[93]; w[91] = acc; }
+    { double acc = w[90]; acc -= A[471] * w[91]; acc -= A[472] * w[92]; acc -= A[473] * w[93]; w[90] = acc; }
+    { int p = 90 + piv[93]; double t = w[93]; w[93] = w[p]; w[p] = t; }
+    { int p = 90 + piv[92]; double t = w[92]; w[92] = w[p]; w[p] = t; }
+    { int p = 90 + piv[91]; double t = w[91]; w[91] = w[p]; w[p] = t; }
+    { int p = 90 + piv[90]; double t = w[90]; w[90] = w[p]; w[p] = t; }
+    w[20] -= off[287] * w[90];
+    w[24] -= off[288] * w[90];
+    w[25] -= off[289] * w[90];
+    w[27] -= off[290] * w[90];
+    w[48] -= off[291] * w[91];
+    w[49] -= off[292] * w[91];
+    w[61] -= off[293] * w[91];
+    w[87] -= off[294] * w[91];
+    w[88] -= off[295] * w[91];
+    w[89] -= off[296] * w[91];
+    w[48] -= off[297] * w[92];
+    w[49] -= off[298] * w[92];
+    w[61] -= off[299] * w[92];
+    w[87] -= off[300] * w[92];
+    w[88] -= off[301] * w[92];
+    w[89] -= off[302] * w[92];
+    { double acc = w[89]; w[89] = acc * (1.0 / A[469]); }
+    w[44] -= off[282] * w[89];
+    w[79] -= off[283] * w[89];
+    w[80] -= off[284] * w[89];
+    w[83] -= off[285] * w[89];
+    w[85] -= off[286] * w[89];
+    { double acc = w[88]; w[88] = acc * (1.0 / A[468]); }
+    w[60] -= off[277] * w[88];
+    w[79] -= off[278] * w[88];
+    w[80] -= off[279] * w[88];
+    w[83] -= off[280] * w[88];
+    w[85] -= off[281] * w[88];
+    { double acc = w[87]; w[87] = acc * (1.0 / A[467]); }
+    w[45] -= off[272] * w[87];
+    w[79] -= off[273] * w[87];
+    w[80] -= off[274] * w[87];
+    w[83] -= off[275] * w[87];
+    w[85] -= off[276] * w[87];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[79]; w[79] = acc * (1.0 / A[403]); }
+    { double acc = w[80]; acc -= A[411] * w[79]; w[80] = acc * (1.0 / A[412]); }
+    { double acc = w[81]; acc -= A[419] * w[79]; acc -= A[420] * w[80]; w[81] = acc * (1.0 / A[421]); }
+    { double acc = w[82]; acc -= A[427] * w[79]; acc -= A[428] * w[80]; acc -= A[429] * w[81]; w[82] = acc * (1.0 / A[430]); }
+    { double acc = w[83]; acc -= A[435] * w[79]; acc -= A[436] * w[80]; acc -= A[437] * w[81]; acc -= A[438] * w[82]; w[83] = acc * (1.0 / A[439]); }
+    { double acc = w[84]; acc -= A[443] * w[79]; acc -= A[444] * w[80]; acc -= A[445] * w[81]; acc -= A[446] * w[82]; acc -= A[447] * w[83]; w[84] = acc * (1.0 / A[448]); }
+    { double acc = w[85]; acc -= A[451] * w[79]; acc -= A[452] * w[80]; acc -= A[453] * w[81]; acc -= A[454] * w[82]; acc -= A[455] * w[83]; acc -= A[456] * w[84]; w[85] = acc * (1.0 / A[457]); }
+    { double acc = w[86]; acc -= A[459] * w[79]; acc -= A[460] * w[80]; acc -= A[461] * w[81]; acc -= A[462] * w[82]; acc -= A[463] * w[83]; acc -= A[464] * w[84]; acc -= A[465] * w[85]; w[86] = acc * (1.0 / A[466]); }
+    { double acc = w[85]; acc -= A[458] * w[86]; w[85] = acc; }
+    { double acc = w[84]; acc -= A[449] * w[85]; acc -= A[450] * w[86]; w[84] = acc; }
+    { double acc = w[83]; acc -= A[440] * w[84]; acc -= A[441] * w[85]; acc -= A[442] * w[86]; w[83] = acc; }
+    { double acc = w[82]; acc -= A[431] * w[83]; acc -= A[432] * w[84]; acc -= A[433] * w[85]; acc -= A[434] * w[86]; w[82] = acc; }
+    { double acc = w[81]; acc -= A[422] * w[82]; acc -= A[423] * w[83]; acc -= A[424] * w[84]; acc -= A[425] * w[85]; acc -= A[426] * w[86]; w[81] = acc; }
+    { double acc = w[80]; acc -= A[413] * w[81]; acc -= A[414] * w[82]; acc -= A[415] * w[83]; acc -= A[416] * w[84]; acc -= A[417] * w[85]; acc -= A[418] * w[86]; w[80] = acc; }
+    { double acc = w[79]; acc -= A[404] * w[80]; acc -= A[405] * w[81]; acc -= A[406] * w[82]; acc -= A[407] * w[83]; acc -= A[408] * w[84]; acc -= A[409] * w[85]; acc -= A[410] * w[86]; w[79] = acc; }
+    { int p = 79 + piv[86]; double t = w[86]; w[86] = w[p]; w[p] = t; }
+    { int p = 79 + piv[85]; double t = w[85]; w[85] = w[p]; w[p] = t; }
+    { int p = 79 + piv[84]; double t = w[84]; w[84] = w[p]; w[p] = t; }
+    { int p = 79 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    { int p = 79 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 79 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { int p = 79 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 79 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    w[20] -= off[254] * w[79];
+    w[24] -= off[255] * w[79];
+    w[25] -= off[256] * w[79];
+    w[27] -= off[257] * w[79];
+    w[20] -= off[258] * w[80];
+    w[24] -= off[259] * w[80];
+    w[25] -= off[260] * w[80];
+    w[27] -= off[261] * w[80];
+    w[44] -= off[262] * w[81];
+    w[46] -= off[263] * w[81];
+    w[60] -= off[264] * w[82];
+    w[74] -= off[265] * w[82];
+    w[45] -= off[266] * w[83];
+    w[47] -= off[267] * w[83];
+    w[28] -= off[268] * w[84];
+    w[29] -= off[269] * w[84];
+    w[30] -= off[270] * w[84];
+    w[31] -= off[271] * w[84];
+    { double acc = w[75]; w[75] = acc * (1.0 / A[387]); }
+    { double acc = w[76]; acc -= A[391] * w[75]; w[76] = acc * (1.0 / A[392]); }
+    { double acc = w[77]; acc -= A[395] * w[75]; acc -= A[396] * w[76]; w[77] = acc * (1.0 / A[397]); }
+    { double acc = w[78]; acc -= A[399] * w[75]; acc -= A[400] * w[76]; acc -= A[401] * w[77]; w[78] = acc * (1.0 / A[402]); }
+    { double acc = w[77]; acc -= A[398] * w[78]; w[77] = acc; }
+    { double acc = w[76]; acc -= A[393] * w[77]; acc -= A[394] * w[78]; w[76] = acc; }
+    { double acc = w[75]; acc -= A[388] * w[76]; acc -= A[389] * w[77]; acc -= A[390] * w[78]; w[75] = acc; }
+    { int p = 75 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { int p = 75 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
+    { int p = 75 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
+    { int p = 75 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    w[70] -= off[242] * w[75];
+    w[71] -= off[243] * w[75];
+    w[72] -= off[244] * w[75];
+    w[73] -= off[245] * w[75];
+    w[70] -= off[246] * w[76];
+    w[71] -= off[247] * w[76];
+    w[72] -= off[248] * w[76];
+    w[73] -= off[249] * w[76];
+    w[70] -= off[250] * w[77];
+    w[71] -= off[251] * w[77];
+    w[72] -= off[252] * w[77];
+    w[73] -= off[253] * w[77];
+    { double acc = w[74]; w[74] = acc * (1.0 / A[386]); }
+    w[28] -= off[237] * w[74];
+    w[29] -= off[238] * w[74];
+    w[30] -= off[239] * w[74];
+    w[31] -= off[240] * w[74];
+    w[59] -= off[241] * w[74];
+}
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[70]; w[70] = acc * (1.0 / A[370]); }
+    { double acc = w[71]; acc -= A[374] * w[70]; w[71] = acc * (1.0 / A[375]); }
+    { double acc = w[72]; acc -= A[378] * w[70]; acc -= A[379] * w[71]; w[72] = acc * (1.0 / A[380]); }
+    { double acc = w[73]; acc -= A[382] * w[70]; acc -= A[383] * w[71]; acc -= A[384] * w[72]; w[73] = acc * (1.0 / A[385]); }
+    { double acc = w[72]; acc -= A[381] * w[73]; w[72] = acc; }
+    { double acc = w[71]; acc -= A[376] * w[72]; acc -= A[377] * w[73]; w[71] = acc; }
+    { double acc = w[70]; acc -= A[371] * w[71]; acc -= A[372] * w[72]; acc -= A[373] * w[73]; w[70] = acc; }
+    { int p = 70 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 70 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { int p = 70 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
+    { int p = 70 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    w[16] -= off[221] * w[70];
+    w[17] -= off[222] * w[70];
+    w[21] -= off[223] * w[70];
+    w[26] -= off[224] * w[70];
+    w[39] -= off[225] * w[71];
+    w[40] -= off[226] * w[71];
+    w[41] -= off[227] * w[71];
+    w[42] -= off[228] * w[71];
+    w[43] -= off[229] * w[71];
+    w[58] -= off[230] * w[71];
+    w[39] -= off[231] * w[72];
+    w[40] -= off[232] * w[72];
+    w[41] -= off[233] * w[72];
+    w[42] -= off[234] * w[72];
+    w[43] -= off[235] * w[72];
+    w[58] -= off[236] * w[72];
+    { double acc = w[66]; w[66] = acc * (1.0 / A[354]); }
+    { double acc = w[67]; acc -= A[358] * w[66]; w[67] = acc * (1.0 / A[359]); }
+    { double acc = w[68]; acc -= A[362] * w[66]; acc -= A[363] * w[67]; w[68] = acc * (1.0 / A[364]); }
+    { double acc = w[69]; acc -= A[366] * w[66]; acc -= A[367] * w[67]; acc -= A[368] * w[68]; w[69] = acc * (1.0 / A[369]); }
+    { double acc = w[68]; acc -= A[365] * w[69]; w[68] = acc; }
+    { double acc = w[67]; acc -= A[360] * w[68]; acc -= A[361] * w[69]; w[67] = acc; }
+    { double acc = w[66]; acc -= A[355] * w[67]; acc -= A[356] * w[68]; acc -= A[357] * w[69]; w[66] = acc; }
+    { int p = 66 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { int p = 66 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
+    { int p = 66 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 66 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    w[54] -= off[209] * w[66];
+    w[55] -= off[210] * w[66];
+    w[56] -= off[211] * w[66];
+    w[57] -= off[212] * w[66];
+    w[54] -= off[213] * w[67];
+    w[55] -= off[214] * w[67];
+    w[56] -= off[215] * w[67];
+    w[57] -= off[216] * w[67];
+    w[54] -= off[217] * w[68];
+    w[55] -= off[218] * w[68];
+    w[56] -= off[219] * w[68];
+    w[57] -= off[220] * w[68];
+    { double acc = w[62]; w[62] = acc * (1.0 / A[338]); }
+    { double acc = w[63]; acc -= A[342] * w[62]; w[63] = acc * (1.0 / A[343]); }
+    { double acc = w[64]; acc -= A[346] * w[62]; acc -= A[347] * w[63]; w[64] = acc * (1.0 / A[348]); }
+    { double acc = w[65]; acc -= A[350] * w[62]; acc -= A[351] * w[63]; acc -= A[352] * w[64]; w[65] = acc * (1.0 / A[353]); }
+    { double acc = w[64]; acc -= A[349] * w[65]; w[64] = acc; }
+    { double acc = w[63]; acc -= A[344] * w[64]; acc -= A[345] * w[65]; w[63] = acc; }
+    { double acc = w[62]; acc -= A[339] * w[63]; acc -= A[340] * w[64]; acc -= A[341] * w[65]; w[62] = acc; }
+    { int p = 62 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
+    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    w[50] -= off[197] * w[62];
+    w[51] -= off[198] * w[62];
+    w[52] -= off[199] * w[62];
+    w[53] -= off[200] * w[62];
+    w[50] -= off[201] * w[63];
+    w[51] -= off[202] * w[63];
+    w[52] -= off[203] * w[63];
+    w[53] -= off[204] * w[63];
+    w[50] -= off[205] * w[64];
+    w[51] -= off[206] * w[64];
+    w[52] -= off[207] * w[64];
+    w[53] -= off[208] * w[64];
+    { double acc = w[61]; w[61] = acc * (1.0 / A[337]); }
+    w[20] -= off[192] * w[61];
+    w[24] -= off[193] * w[61];
+    w[25] -= off[194] * w[61];
+    w[27] -= off[195] * w[61];
+    w[38] -= off[196] * w[61];
+    { double acc = w[60]; w[60] = acc * (1.0 / A[336]); }
+    w[20] -= off[187] * w[60];
+    w[24] -= off[188] * w[60];
+    w[25] -= off[189] * w[60];
+    w[27] -= off[190] * w[60];
+    w[38] -= off[191] * w[60];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[335]); }
+    w[20] -= off[182] * w[59];
+    w[24] -= off[183] * w[59];
+    w[25] -= off[184] * w[59];
+    w[27] -= off[185] * w[59];
+    w[38] -= off[186] * w[59];
+    { double acc = w[58]; w[58] = acc * (1.0 / A[334]); }
+    w[20] -= off[177] * w[58];
+    w[24] -= off[178] * w[58];
+    w[25] -= off[179] * w[58];
+    w[27] -= off[180] * w[58];
+    w[38] -= off[181] * w[58];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[54]; w[54] = acc * (1.0 / A[318]); }
+    { double acc = w[55]; acc -= A[322] * w[54]; w[55] = acc * (1.0 / A[323]); }
+    { double acc = w[56]; acc -= A[326] * w[54]; acc -= A[327] * w[55]; w[56] = acc * (1.0 / A[328]); }
+    { double acc = w[57]; acc -= A[330] * w[54]; acc -= A[331] * w[55]; acc -= A[332] * w[56]; w[57] = acc * (1.0 / A[333]); }
+    { double acc = w[56]; acc -= A[329] * w[57]; w[56] = acc; }
+    { double acc = w[55]; acc -= A[324] * w[56]; acc -= A[325] * w[57]; w[55] = acc; }
+    { double acc = w[54]; acc -= A[319] * w[55]; acc -= A[320] * w[56]; acc -= A[321] * w[57]; w[54] = acc; }
+    { int p = 54 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
+    { int p = 54 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    { int p = 54 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
+    { int p = 54 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
+    w[3] -= off[161] * w[54];
+    w[4] -= off[162] * w[54];
+    w[5] -= off[163] * w[54];
+    w[6] -= off[164] * w[54];
+    w[13] -= off[165] * w[55];
+    w[14] -= off[166] * w[55];
+    w[15] -= off[167] * w[55];
+    w[35] -= off[168] * w[55];
+    w[36] -= off[169] * w[55];
+    w[37] -= off[170] * w[55];
+    w[13] -= off[171] * w[56];
+    w[14] -= off[172] * w[56];
+    w[15] -= off[173] * w[56];
+    w[35] -= off[174] * w[56];
+    w[36] -= off[175] * w[56];
+    w[37] -= off[176] * w[56];
+    { double acc = w[50]; w[50] = acc * (1.0 / A[302]); }
+    { double acc = w[51]; acc -= A[306] * w[50]; w[51] = acc * (1.0 / A[307]); }
+    { double acc = w[52]; acc -= A[310] * w[50]; acc -= A[311] * w[51]; w[52] = acc * (1.0 / A[312]); }
+    { double acc = w[53]; acc -= A[314] * w[50]; acc -= A[315] * w[51]; acc -= A[316] * w[52]; w[53] = acc * (1.0 / A[317]); }
+    { double acc = w[52]; acc -= A[313] * w[53]; w[52] = acc; }
+    { double acc = w[51]; acc -= A[308] * w[52]; acc -= A[309] * w[53]; w[51] = acc; }
+    { double acc = w[50]; acc -= A[303] * w[51]; acc -= A[304] * w[52]; acc -= A[305] * w[53]; w[50] = acc; }
+    { int p = 50 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
+    { int p = 50 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
+    { int p = 50 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { int p = 50 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    w[3] -= off[145] * w[50];
+    w[4] -= off[146] * w[50];
+    w[5] -= off[147] * w[50];
+    w[6] -= off[148] * w[50];
+    w[10] -= off[149] * w[51];
+    w[11] -= off[150] * w[51];
+    w[12] -= off[151] * w[51];
+    w[32] -= off[152] * w[51];
+    w[33] -= off[153] * w[51];
+    w[34] -= off[154] * w[51];
+    w[10] -= off[155] * w[52];
+    w[11] -= off[156] * w[52];
+    w[12] -= off[157] * w[52];
+    w[32] -= off[158] * w[52];
+    w[33] -= off[159] * w[52];
+    w[34] -= off[160] * w[52];
+    { double acc = w[49]; w[49] = acc * (1.0 / A[301]); }
+    w[19] -= off[140] * w[49];
+    w[20] -= off[141] * w[49];
+    w[24] -= off[142] * w[49];
+    w[25] -= off[143] * w[49];
+    w[27] -= off[144] * w[49];
+    { double acc = w[48]; w[48] = acc * (1.0 / A[300]); }
+    w[18] -= off[135] * w[48];
+    w[20] -= off[136] * w[48];
+    w[24] -= off[137] * w[48];
+    w[25] -= off[138] * w[48];
+    w[27] -= off[139] * w[48];
+    { double acc = w[47]; w[47] = acc * (1.0 / A[299]); }
+    w[23] -= off[130] * w[47];
+    w[28] -= off[131] * w[47];
+    w[29] -= off[132] * w[47];
+    w[30] -= off[133] * w[47];
+    w[31] -= off[134] * w[47];
+    { double acc = w[46]; w[46] = acc * (1.0 / A[298]); }
+    w[22] -= off[125] * w[46];
+    w[28] -= off[126] * w[46];
+    w[29] -= off[127] * w[46];
+    w[30] -= off[128] * w[46];
+    w[31] -= off[129] * w[46];
+    { double acc = w[45]; w[45] = acc * (1.0 / A[297]); }
+    w[19] -= off[120] * w[45];
+    w[20] -= off[121] * w[45];
+    w[24] -= off[122] * w[45];
+    w[25] -= off[123] * w[45];
+    w[27] -= off[124] * w[45];
+    { double acc = w[44]; w[44] = acc * (1.0 / A[296]); }
+    w[18] -= off[115] * w[44];
+    w[20] -= off[116] * w[44];
+    w[24] -= off[117] * w[44];
+    w[25] -= off[118] * w[44];
+    w[27] -= off[119] * w[44];
+    { double acc = w[43]; w[43] = acc * (1.0 / A[295]); }
+    w[18] -= off[110] * w[43];
+    w[20] -= off[111] * w[43];
+    w[24] -= off[112] * w[43];
+    w[25] -= off[113] * w[43];
+    w[27] -= off[114] * w[43];
+    { double acc = w[42]; w[42] = acc * (1.0 / A[294]); }
+    w[19] -= off[105] * w[42];
+    w[20] -= off[106] * w[42];
+    w[24] -= off[107] * w[42];
+    w[25] -= off[108] * w[42];
+    w[27] -= off[109] * w[42];
+    { double acc = w[41]; w[41] = acc * (1.0 / A[293]); }
+    w[9] -= off[100] * w[41];
+    w[16] -= off[101] * w[41];
+    w[17] -= off[102] * w[41];
+    w[21] -= off[103] * w[41];
+    w[26] -= off[104] * w[41];
+    { double acc = w[40]; w[40] = acc * (1.0 / A[292]); }
+    w[8] -= off[95] * w[40];
+    w[16] -= off[96] * w[40];
+    w[17] -= off[97] * w[40];
+    w[21] -= off[98] * w[40];
+    w[26] -= off[99] * w[40];
+    { double acc = w[39]; w[39] = acc * (1.0 / A[291]); }
+    w[7] -= off[90] * w[39];
+    w[16] -= off[91] * w[39];
+    w[17] -= off[92] * w[39];
+    w[21] -= off[93] * w[39];
+    w[26] -= off[94] * w[39];
+    { double acc = w[38]; w[38] = acc * (1.0 / A[290]); }
+    w[8] -= off[85] * w[38];
+    w[16] -= off[86] * w[38];
+    w[17] -= off[87] * w[38];
+    w[21] -= off[88] * w[38];
+    w[26] -= off[89] * w[38];
+    { double acc = w[37]; w[37] = acc * (1.0 / A[289]); }
+    w[7] -= off[80] * w[37];
+    w[16] -= off[81] * w[37];
+    w[17] -= off[82] * w[37];
+    w[21] -= off[83] * w[37];
+    w[26] -= off[84] * w[37];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[288]); }
+    w[8] -= off[75] * w[36];
+    w[16] -= off[76] * w[36];
+    w[17] -= off[77] * w[36];
+    w[21] -= off[78] * w[36];
+    w[26] -= off[79] * w[36];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[287]); }
+    w[9] -= off[70] * w[35];
+    w[16] -= off[71] * w[35];
+    w[17] -= off[72] * w[35];
+    w[21] -= off[73] * w[35];
+    w[26] -= off[74] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[286]); }
+    w[7] -= off[65] * w[34];
+    w[16] -= off[66] * w[34];
+    w[17] -= off[67] * w[34];
+    w[21] -= off[68] * w[34];
+    w[26] -= off[69] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[285]); }
+    w[8] -= off[60] * w[33];
+    w[16] -= off[61] * w[33];
+    w[17] -= off[62] * w[33];
+    w[21] -= off[63] * w[33];
+    w[26] -= off[64] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[284]); }
+    w[9] -= off[55] * w[32];
+    w[16] -= off[56] * w[32];
+    w[17] -= off[57] * w[32];
+    w[21] -= off[58] * w[32];
+    w[26] -= off[59] * w[32];
+}
+static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[16]; w[16] = acc * (1.0 / A[28]); }
+    { double acc = w[17]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
+    { double acc = w[18]; acc -= A[60] * w[16]; acc -= A[61] * w[17]; w[18] = acc * (1.0 / A[62]); }
+    { double acc = w[19]; acc -= A[76] * w[16]; acc -= A[77] * w[17]; acc -= A[78] * w[18]; w[19] = acc * (1.0 / A[79]); }
+    { double acc = w[20]; acc -= A[92] * w[16]; acc -= A[93] * w[17]; acc -= A[94] * w[18]; acc -= A[95] * w[19]; w[20] = acc * (1.0 / A[96]); }
+    { double acc = w[21]; acc -= A[108] * w[16]; acc -= A[109] * w[17]; acc -= A[110] * w[18]; acc -= A[111] * w[19]; acc -= A[112] * w[20]; w[21] = acc * (1.0 / A[113]); }
+    { double acc = w[22]; acc -= A[124] * w[16]; acc -= A[125] * w[17]; acc -= A[126] * w[18]; acc -= A[127] * w[19]; acc -= A[128] * w[20]; acc -= A[129] * w[21]; w[22] = acc * (1.0 / A[130]); }
+    { double acc = w[23]; acc -= A[140] * w[16]; acc -= A[141] * w[17]; acc -= A[142] * w[18]; acc -= A[143] * w[19]; acc -= A[144] * w[20]; acc -= A[145] * w[21]; acc -= A[146] * w[22]; w[23] = acc * (1.0 / A[147]); }
+    { double acc = w[24]; acc -= A[156] * w[16]; acc -= A[157] * w[17]; acc -= A[158] * w[18]; acc -= A[159] * w[19]; acc -= A[160] * w[20]; acc -= A[161] * w[21]; acc -= A[162] * w[22]; acc -= A[163] * w[23]; w[24] = acc * (1.0 / A[164]); }
+    { double acc = w[25]; acc -= A[172] * w[16]; acc -= A[173] * w[17]; acc -= A[174] * w[18]; acc -= A[175] * w[19]; acc -= A[176] * w[20]; acc -= A[177] * w[21]; acc -= A[178] * w[22]; acc -= A[179] * w[23]; acc -= A[180] * w[24]; w[25] = acc * (1.0 / A[181]); }
+    { double acc = w[26]; acc -= A[188] * w[16]; acc -= A[189] * w[17]; acc -= A[190] * w[18]; acc -= A[191] * w[19]; acc -= A[192] * w[20]; acc -= A[193] * w[21]; acc -= A[194] * w[22]; acc -= A[195] * w[23]; acc -= A[196] * w[24]; acc -= A[197] * w[25]; w[26] = acc * (1.0 / A[198]); }
+    { double acc = w[27]; acc -= A[204] * w[16]; acc -= A[205] * w[17]; acc -= A[206] * w[18]; acc -= A[207] * w[19]; acc -= A[208] * w[20]; acc -= A[209] * w[21]; acc -= A[210] * w[22]; acc -= A[211] * w[23]; acc -= A[212] * w[24]; acc -= A[213] * w[25]; acc -= A[214] * w[26]; w[27] = acc * (1.0 / A[215]); }
+    { double acc = w[28]; acc -= A[220] * w[16]; acc -= A[221] * w[17]; acc -= A[222] * w[18]; acc -= A[223] * w[19]; acc -= A[224] * w[20]; acc -= A[225] * w[21]; acc -= A[226] * w[22]; acc -= A[227] * w[23]; acc -= A[228] * w[24]; acc -= A[229] * w[25]; acc -= A[230] * w[26]; acc -= A[231] * w[27]; w[28] = acc * (1.0 / A[232]); }
+    { double acc = w[29]; acc -= A[236] * w[16]; acc -= A[237] * w[17]; acc -= A[238] * w[18]; acc -= A[239] * w[19]; acc -= A[240] * w[20]; acc -= A[241] * w[21]; acc -= A[242] * w[22]; acc -= A[243] * w[23]; acc -= A[244] * w[24]; acc -= A[245] * w[25]; acc -= A[246] * w[26]; acc -= A[247] * w[27]; acc -= A[248] * w[28]; w[29] = acc * (1.0 / A[249]); }
+    { double acc = w[30]; acc -= A[252] * w[16]; acc -= A[253] * w[17]; acc -= A[254] * w[18]; acc -= A[255] * w[19]; acc -= A[256] * w[20]; acc -= A[257] * w[21]; acc -= A[258] * w[22]; acc -= A[259] * w[23]; acc -= A[260] * w[24]; acc -= A[261] * w[25]; acc -= A[262] * w[26]; acc -= A[263] * w[27]; acc -= A[264] * w[28]; acc -= A[265] * w[29]; w[30] = acc * (1.0 / A[266]); }
+    { double acc = w[31]; acc -= A[268] * w[16]; acc -= A[269] * w[17]; acc -= A[270] * w[18]; acc -= A[271] * w[19]; acc -= A[272] * w[20]; acc -= A[273] * w[21]; acc -= A[274] * w[22]; acc -= A[275] * w[23]; acc -= A[276] * w[24]; acc -= A[277] * w[25]; acc -= A[278] * w[26]; acc -= A[279] * w[27]; acc -= A[280] * w[28]; acc -= A[281] * w[29]; acc -= A[282] * w[30]; w[31] = acc * (1.0 / A[283]); }
+    { double acc = w[30]; acc -= A[267] * w[31]; w[30] = acc; }
+    { double acc = w[29]; acc -= A[250] * w[30]; acc -= A[251] * w[31]; w[29] = acc; }
+    { double acc = w[28]; acc -= A[233] * w[29]; acc -= A[234] * w[30]; acc -= A[235] * w[31]; w[28] = acc; }
+    { double acc = w[27]; acc -= A[216] * w[28]; acc -= A[217] * w[29]; acc -= A[218] * w[30]; acc -= A[219] * w[31]; w[27] = acc; }
+    { double acc = w[26]; acc -= A[199] * w[27]; acc -= A[200] * w[28]; acc -= A[201] * w[29]; acc -= A[202] * w[30]; acc -= A[203] * w[31]; w[26] = acc; }
+    { double acc = w[25]; acc -= A[182] * w[26]; acc -= A[183] * w[27]; acc -= A[184] * w[28]; acc -= A[185] * w[29]; acc -= A[186] * w[30]; acc -= A[187] * w[31]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[165] * w[25]; acc -= A[166] * w[26]; acc -= A[167] * w[27]; acc -= A[168] * w[28]; acc -= A[169] * w[29]; acc -= A[170] * w[30]; acc -= A[171] * w[31]; w[24] = acc; }
+    { double acc = w[23]; acc -= A[148] * w[24]; acc -= A[149] * w[25]; acc -= A[150] * w[26]; acc -= A[151] * w[27]; acc -= A[152] * w[28]; acc -= A[153] * w[29]; acc -= A[154] * w[30]; acc -= A[155] * w[31]; w[23] = acc; }
+    { double acc = w[22]; acc -= A[131] * w[23]; acc -= A[132] * w[24]; acc -= A[133] * w[25]; acc -= A[134] * w[26]; acc -= A[135] * w[27]; acc -= A[136] * w[28]; acc -= A[137] * w[29]; acc -= A[138] * w[30]; acc -= A[139] * w[31]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[114] * w[22]; acc -= A[115] * w[23]; acc -= A[116] * w[24]; acc -= A[117] * w[25]; acc -= A[118] * w[26]; acc -= A[119] * w[27]; acc -= A[120] * w[28]; acc -= A[121] * w[29]; acc -= A[122] * w[30]; acc -= A[123] * w[31]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[97] * w[21]; acc -= A[98] * w[22]; acc -= A[99] * w[23]; acc -= A[100] * w[24]; acc -= A[101] * w[25]; acc -= A[102] * w[26]; acc -= A[103] * w[27]; acc -= A[104] * w[28]; acc -= A[105] * w[29]; acc -= A[106] * w[30]; acc -= A[107] * w[31]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[80] * w[20]; acc -= A[81] * w[21]; acc -= A[82] * w[22]; acc -= A[83] * w[23]; acc -= A[84] * w[24]; acc -= A[85] * w[25]; acc -= A[86] * w[26]; acc -= A[87] * w[27]; acc -= A[88] * w[28]; acc -= A[89] * w[29]; acc -= A[90] * w[30]; acc -= A[91] * w[31]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[63] * w[19]; acc -= A[64] * w[20]; acc -= A[65] * w[21]; acc -= A[66] * w[22]; acc -= A[67] * w[23]; acc -= A[68] * w[24]; acc -= A[69] * w[25]; acc -= A[70] * w[26]; acc -= A[71] * w[27]; acc -= A[72] * w[28]; acc -= A[73] * w[29]; acc -= A[74] * w[30]; acc -= A[75] * w[31]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; acc -= A[56] * w[28]; acc -= A[57] * w[29]; acc -= A[58] * w[30]; acc -= A[59] * w[31]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; acc -= A[33] * w[21]; acc -= A[34] * w[22]; acc -= A[35] * w[23]; acc -= A[36] * w[24]; acc -= A[37] * w[25]; acc -= A[38] * w[26]; acc -= A[39] * w[27]; acc -= A[40] * w[28]; acc -= A[41] * w[29]; acc -= A[42] * w[30]; acc -= A[43] * w[31]; w[16] = acc; }
+    { int p = 16 + piv[31]; double t = w[31]; w[31] = w[p]; w[p] = t; }
+    { int p = 16 + piv[30]; double t = w[30]; w[30] = w[p]; w[p] = t; }
+    { int p = 16 + piv[29]; double t = w[29]; w[29] = w[p]; w[p] = t; }
+    { int p = 16 + piv[28]; double t = w[28]; w[28] = w[p]; w[p] = t; }
+    { int p = 16 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
+    { int p = 16 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 16 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 16 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { int p = 16 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 16 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 16 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 16 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 16 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 16 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 16 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 16 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    w[3] -= off[45] * w[16];
+    w[4] -= off[46] * w[16];
+    w[5] -= off[47] * w[16];
+    w[6] -= off[48] * w[16];
+    w[3] -= off[49] * w[17];
+    w[4] -= off[50] * w[17];
+    w[5] -= off[51] * w[17];
+    w[6] -= off[52] * w[17];
+    w[7] -= off[53] * w[18];
+    w[9] -= off[54] * w[19];
+}
+static void solve_transposed_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[15]; w[15] = acc * (1.0 / A[27]); }
+    w[2] -= off[40] * w[15];
+    w[3] -= off[41] * w[15];
+    w[4] -= off[42] * w[15];
+    w[5] -= off[43] * w[15];
+    w[6] -= off[44] * w[15];
+    { double acc = w[14]; w[14] = acc * (1.0 / A[26]); }
+    w[1] -= off[35] * w[14];
+    w[3] -= off[36] * w[14];
+    w[4] -= off[37] * w[14];
+    w[5] -= off[38] * w[14];
+    w[6] -= off[39] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[25]); }
+    w[0] -= off[30] * w[13];
+    w[3] -= off[31] * w[13];
+    w[4] -= off[32] * w[13];
+    w[5] -= off[33] * w[13];
+    w[6] -= off[34] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[24]); }
+    w[2] -= off[25] * w[12];
+    w[3] -= off[26] * w[12];
+    w[4] -= off[27] * w[12];
+    w[5] -= off[28] * w[12];
+    w[6] -= off[29] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[23]); }
+    w[1] -= off[20] * w[11];
+    w[3] -= off[21] * w[11];
+    w[4] -= off[22] * w[11];
+    w[5] -= off[23] * w[11];
+    w[6] -= off[24] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
+    w[0] -= off[15] * w[10];
+    w[3] -= off[16] * w[10];
+    w[4] -= off[17] * w[10];
+    w[5] -= off[18] * w[10];
+    w[6] -= off[19] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[21]); }
+    w[2] -= off[10] * w[9];
+    w[3] -= off[11] * w[9];
+    w[4] -= off[12] * w[9];
+    w[5] -= off[13] * w[9];
+    w[6] -= off[14] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[20]); }
+    w[1] -= off[5] * w[8];
+    w[3] -= off[6] * w[8];
+    w[4] -= off[7] * w[8];
+    w[5] -= off[8] * w[8];
+    w[6] -= off[9] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
+    w[0] -= off[0] * w[7];
+    w[3] -= off[1] * w[7];
+    w[4] -= off[2] * w[7];
+    w[5] -= off[3] * w[7];
+    w[6] -= off[4] * w[7];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
+    { double acc = w[6]; acc -= A[15] * w[3]; acc -= A[16] * w[4]; acc -= A[17] * w[5]; w[6] = acc * (1.0 / A[18]); }
+    { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
+    { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
+    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 98; ++j) w[j] = c[col_order_level_cut[j]];
+    solve_transposed_level_cut_0(A, off, piv, w);
+    solve_transposed_level_cut_1(A, off, piv, w);
+    solve_transposed_level_cut_2(A, off, piv, w);
+    solve_transposed_level_cut_3(A, off, piv, w);
+    solve_transposed_level_cut_4(A, off, piv, w);
+    solve_transposed_level_cut_5(A, off, piv, w);
+    for (int i = 0; i < 98; ++i) x[row_order_level_cut[i]] = w[i];
+}
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11573,7 +12676,7 @@ const kinegen_model excavator_euler_parameters_level_cut = {
     .row_order = row_order_level_cut, .col_order = col_order_level_cut,
     .n_store = 502, .n_diag = 312, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 315, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -11609,7 +12712,7 @@ const kinegen_model excavator_euler_parameters_trench_wall = {
     .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
     .n_store = 502, .n_diag = 312, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 315, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -11645,7 +12748,7 @@ const kinegen_model excavator_euler_parameters_bucket_toggle = {
     .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 297, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -11681,7 +12784,7 @@ const kinegen_model excavator_euler_parameters_bucket_stroke = {
     .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 297, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -11717,7 +12820,7 @@ const kinegen_model excavator_euler_parameters_bucket_near_toggle = {
     .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 297, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -11753,7 +12856,7 @@ const kinegen_model excavator_euler_parameters_digging_fast = {
     .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 297, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -11789,7 +12892,7 @@ const kinegen_model excavator_euler_parameters_digging_paced = {
     .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 297, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -11825,7 +12928,7 @@ const kinegen_model excavator_euler_parameters_oscillation = {
     .row_order = row_order_oscillation, .col_order = col_order_oscillation,
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 297, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

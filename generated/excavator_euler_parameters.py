@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_parameters.h': '73d0edded1955ea537e264580240443250425e877ee4486898d605a7d2414867', 'excavator_euler_parameters.c': '22eff7d222b4eae073a9181bf8f3f15aa9cb3cd2e296b1b5a495b769600f61e5'}
+C_FILES = {'excavator_euler_parameters.h': '73d0edded1955ea537e264580240443250425e877ee4486898d605a7d2414867', 'excavator_euler_parameters.c': '183743d06058672294d3167f7472a5644647724a3fa2652f722dc3d41fb4b584'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -12090,6 +12090,428 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     solve_digging_4(A, off, piv, b, y);
     for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_digging) */
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[81]; w[81] = acc * (1.0 / A[393]); }
+    { double acc = w[82]; acc -= A[396] * w[81]; w[82] = acc * (1.0 / A[397]); }
+    { double acc = w[83]; acc -= A[399] * w[81]; acc -= A[400] * w[82]; w[83] = acc * (1.0 / A[401]); }
+    { double acc = w[82]; acc -= A[398] * w[83]; w[82] = acc; }
+    { double acc = w[81]; acc -= A[394] * w[82]; acc -= A[395] * w[83]; w[81] = acc; }
+    { int p = 81 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    w[65] -= off[212] * w[81];
+    w[67] -= off[213] * w[81];
+    w[71] -= off[214] * w[81];
+    w[65] -= off[215] * w[82];
+    w[67] -= off[216] * w[82];
+    w[71] -= off[217] * w[82];
+    w[65] -= off[218] * w[83];
+    w[67] -= off[219] * w[83];
+    { double acc = w[72]; w[72] = acc * (1.0 / A[312]); }
+    { double acc = w[73]; acc -= A[321] * w[72]; w[73] = acc * (1.0 / A[322]); }
+    { double acc = w[74]; acc -= A[330] * w[72]; acc -= A[331] * w[73]; w[74] = acc * (1.0 / A[332]); }
+    { double acc = w[75]; acc -= A[339] * w[72]; acc -= A[340] * w[73]; acc -= A[341] * w[74]; w[75] = acc * (1.0 / A[342]); }
+    { double acc = w[76]; acc -= A[348] * w[72]; acc -= A[349] * w[73]; acc -= A[350] * w[74]; acc -= A[351] * w[75]; w[76] = acc * (1.0 / A[352]); }
+    { double acc = w[77]; acc -= A[357] * w[72]; acc -= A[358] * w[73]; acc -= A[359] * w[74]; acc -= A[360] * w[75]; acc -= A[361] * w[76]; w[77] = acc * (1.0 / A[362]); }
+    { double acc = w[78]; acc -= A[366] * w[72]; acc -= A[367] * w[73]; acc -= A[368] * w[74]; acc -= A[369] * w[75]; acc -= A[370] * w[76]; acc -= A[371] * w[77]; w[78] = acc * (1.0 / A[372]); }
+    { double acc = w[79]; acc -= A[375] * w[72]; acc -= A[376] * w[73]; acc -= A[377] * w[74]; acc -= A[378] * w[75]; acc -= A[379] * w[76]; acc -= A[380] * w[77]; acc -= A[381] * w[78]; w[79] = acc * (1.0 / A[382]); }
+    { double acc = w[80]; acc -= A[384] * w[72]; acc -= A[385] * w[73]; acc -= A[386] * w[74]; acc -= A[387] * w[75]; acc -= A[388] * w[76]; acc -= A[389] * w[77]; acc -= A[390] * w[78]; acc -= A[391] * w[79]; w[80] = acc * (1.0 / A[392]); }
+    { double acc = w[79]; acc -= A[383] * w[80]; w[79] = acc; }
+    { double acc = w[78]; acc -= A[373] * w[79]; acc -= A[374] * w[80]; w[78] = acc; }
+    { double acc = w[77]; acc -= A[363] * w[78]; acc -= A[364] * w[79]; acc -= A[365] * w[80]; w[77] = acc; }
+    { double acc = w[76]; acc -= A[353] * w[77]; acc -= A[354] * w[78]; acc -= A[355] * w[79]; acc -= A[356] * w[80]; w[76] = acc; }
+    { double acc = w[75]; acc -= A[343] * w[76]; acc -= A[344] * w[77]; acc -= A[345] * w[78]; acc -= A[346] * w[79]; acc -= A[347] * w[80]; w[75] = acc; }
+    { double acc = w[74]; acc -= A[333] * w[75]; acc -= A[334] * w[76]; acc -= A[335] * w[77]; acc -= A[336] * w[78]; acc -= A[337] * w[79]; acc -= A[338] * w[80]; w[74] = acc; }
+    { double acc = w[73]; acc -= A[323] * w[74]; acc -= A[324] * w[75]; acc -= A[325] * w[76]; acc -= A[326] * w[77]; acc -= A[327] * w[78]; acc -= A[328] * w[79]; acc -= A[329] * w[80]; w[73] = acc; }
+    { double acc = w[72]; acc -= A[313] * w[73]; acc -= A[314] * w[74]; acc -= A[315] * w[75]; acc -= A[316] * w[76]; acc -= A[317] * w[77]; acc -= A[318] * w[78]; acc -= A[319] * w[79]; acc -= A[320] * w[80]; w[72] = acc; }
+    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
+    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
+    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
+    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    w[39] -= off[194] * w[72];
+    w[40] -= off[195] * w[72];
+    w[39] -= off[196] * w[73];
+    w[40] -= off[197] * w[73];
+    w[62] -= off[198] * w[74];
+    w[63] -= off[199] * w[74];
+    w[64] -= off[200] * w[74];
+    w[68] -= off[201] * w[74];
+    w[58] -= off[202] * w[75];
+    w[63] -= off[203] * w[75];
+    w[64] -= off[204] * w[75];
+    w[68] -= off[205] * w[75];
+    w[57] -= off[206] * w[76];
+    w[64] -= off[207] * w[76];
+    w[68] -= off[208] * w[76];
+    w[54] -= off[209] * w[77];
+    w[55] -= off[210] * w[78];
+    w[56] -= off[211] * w[79];
+}
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[63]; w[63] = acc * (1.0 / A[231]); }
+    { double acc = w[64]; acc -= A[240] * w[63]; w[64] = acc * (1.0 / A[241]); }
+    { double acc = w[65]; acc -= A[249] * w[63]; acc -= A[250] * w[64]; w[65] = acc * (1.0 / A[251]); }
+    { double acc = w[66]; acc -= A[258] * w[63]; acc -= A[259] * w[64]; acc -= A[260] * w[65]; w[66] = acc * (1.0 / A[261]); }
+    { double acc = w[67]; acc -= A[267] * w[63]; acc -= A[268] * w[64]; acc -= A[269] * w[65]; acc -= A[270] * w[66]; w[67] = acc * (1.0 / A[271]); }
+    { double acc = w[68]; acc -= A[276] * w[63]; acc -= A[277] * w[64]; acc -= A[278] * w[65]; acc -= A[279] * w[66]; acc -= A[280] * w[67]; w[68] = acc * (1.0 / A[281]); }
+    { double acc = w[69]; acc -= A[285] * w[63]; acc -= A[286] * w[64]; acc -= A[287] * w[65]; acc -= A[288] * w[66]; acc -= A[289] * w[67]; acc -= A[290] * w[68]; w[69] = acc * (1.0 / A[291]); }
+    { double acc = w[70]; acc -= A[294] * w[63]; acc -= A[295] * w[64]; acc -= A[296] * w[65]; acc -= A[297] * w[66]; acc -= A[298] * w[67]; acc -= A[299] * w[68]; acc -= A[300] * w[69]; w[70] = acc * (1.0 / A[301]); }
+    { double acc = w[71]; acc -= A[303] * w[63]; acc -= A[304] * w[64]; acc -= A[305] * w[65]; acc -= A[306] * w[66]; acc -= A[307] * w[67]; acc -= A[308] * w[68]; acc -= A[309] * w[69]; acc -= A[310] * w[70]; w[71] = acc * (1.0 / A[311]); }
+    { double acc = w[70]; acc -= A[302] * w[71]; w[70] = acc; }
+    { double acc = w[69]; acc -= A[292] * w[70]; acc -= A[293] * w[71]; w[69] = acc; }
+    { double acc = w[68]; acc -= A[282] * w[69]; acc -= A[283] * w[70]; acc -= A[284] * w[71]; w[68] = acc; }
+    { double acc = w[67]; acc -= A[272] * w[68]; acc -= A[273] * w[69]; acc -= A[274] * w[70]; acc -= A[275] * w[71]; w[67] = acc; }
+    { double acc = w[66]; acc -= A[262] * w[67]; acc -= A[263] * w[68]; acc -= A[264] * w[69]; acc -= A[265] * w[70]; acc -= A[266] * w[71]; w[66] = acc; }
+    { double acc = w[65]; acc -= A[252] * w[66]; acc -= A[253] * w[67]; acc -= A[254] * w[68]; acc -= A[255] * w[69]; acc -= A[256] * w[70]; acc -= A[257] * w[71]; w[65] = acc; }
+    { double acc = w[64]; acc -= A[242] * w[65]; acc -= A[243] * w[66]; acc -= A[244] * w[67]; acc -= A[245] * w[68]; acc -= A[246] * w[69]; acc -= A[247] * w[70]; acc -= A[248] * w[71]; w[64] = acc; }
+    { double acc = w[63]; acc -= A[232] * w[64]; acc -= A[233] * w[65]; acc -= A[234] * w[66]; acc -= A[235] * w[67]; acc -= A[236] * w[68]; acc -= A[237] * w[69]; acc -= A[238] * w[70]; acc -= A[239] * w[71]; w[63] = acc; }
+    { int p = 63 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
+    { int p = 63 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    { int p = 63 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { int p = 63 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
+    { int p = 63 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 63 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { int p = 63 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
+    { int p = 63 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { int p = 63 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    w[39] -= off[176] * w[63];
+    w[40] -= off[177] * w[63];
+    w[39] -= off[178] * w[64];
+    w[40] -= off[179] * w[64];
+    w[39] -= off[180] * w[65];
+    w[40] -= off[181] * w[65];
+    w[59] -= off[182] * w[66];
+    w[60] -= off[183] * w[66];
+    w[61] -= off[184] * w[66];
+    w[59] -= off[185] * w[67];
+    w[60] -= off[186] * w[67];
+    w[61] -= off[187] * w[67];
+    w[62] -= off[188] * w[68];
+    w[58] -= off[189] * w[69];
+    w[57] -= off[190] * w[70];
+    w[59] -= off[191] * w[71];
+    w[60] -= off[192] * w[71];
+    w[61] -= off[193] * w[71];
+    { double acc = w[62]; w[62] = acc * (1.0 / A[230]); }
+    w[30] -= off[172] * w[62];
+    w[39] -= off[173] * w[62];
+    w[40] -= off[174] * w[62];
+    w[44] -= off[175] * w[62];
+    { double acc = w[61]; w[61] = acc * (1.0 / A[229]); }
+    w[30] -= off[168] * w[61];
+    w[39] -= off[169] * w[61];
+    w[40] -= off[170] * w[61];
+    w[44] -= off[171] * w[61];
+    { double acc = w[60]; w[60] = acc * (1.0 / A[228]); }
+    w[31] -= off[164] * w[60];
+    w[39] -= off[165] * w[60];
+    w[40] -= off[166] * w[60];
+    w[44] -= off[167] * w[60];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[227]); }
+    w[32] -= off[161] * w[59];
+    w[40] -= off[162] * w[59];
+    w[44] -= off[163] * w[59];
+    { double acc = w[58]; w[58] = acc * (1.0 / A[226]); }
+    w[31] -= off[157] * w[58];
+    w[39] -= off[158] * w[58];
+    w[40] -= off[159] * w[58];
+    w[44] -= off[160] * w[58];
+    { double acc = w[57]; w[57] = acc * (1.0 / A[225]); }
+    w[32] -= off[154] * w[57];
+    w[40] -= off[155] * w[57];
+    w[44] -= off[156] * w[57];
+    { double acc = w[56]; w[56] = acc * (1.0 / A[224]); }
+    w[32] -= off[151] * w[56];
+    w[40] -= off[152] * w[56];
+    w[44] -= off[153] * w[56];
+    { double acc = w[55]; w[55] = acc * (1.0 / A[223]); }
+    w[31] -= off[147] * w[55];
+    w[39] -= off[148] * w[55];
+    w[40] -= off[149] * w[55];
+    w[44] -= off[150] * w[55];
+    { double acc = w[54]; w[54] = acc * (1.0 / A[222]); }
+    w[30] -= off[143] * w[54];
+    w[39] -= off[144] * w[54];
+    w[40] -= off[145] * w[54];
+    w[44] -= off[146] * w[54];
+    { double acc = w[51]; w[51] = acc * (1.0 / A[213]); }
+    { double acc = w[52]; acc -= A[216] * w[51]; w[52] = acc * (1.0 / A[217]); }
+    { double acc = w[53]; acc -= A[219] * w[51]; acc -= A[220] * w[52]; w[53] = acc * (1.0 / A[221]); }
+    { double acc = w[52]; acc -= A[218] * w[53]; w[52] = acc; }
+    { double acc = w[51]; acc -= A[214] * w[52]; acc -= A[215] * w[53]; w[51] = acc; }
+    { int p = 51 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
+    { int p = 51 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
+    { int p = 51 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    w[41] -= off[135] * w[51];
+    w[43] -= off[136] * w[51];
+    w[47] -= off[137] * w[51];
+    w[41] -= off[138] * w[52];
+    w[43] -= off[139] * w[52];
+    w[47] -= off[140] * w[52];
+    w[41] -= off[141] * w[53];
+    w[43] -= off[142] * w[53];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[48]; w[48] = acc * (1.0 / A[204]); }
+    { double acc = w[49]; acc -= A[207] * w[48]; w[49] = acc * (1.0 / A[208]); }
+    { double acc = w[50]; acc -= A[210] * w[48]; acc -= A[211] * w[49]; w[50] = acc * (1.0 / A[212]); }
+    { double acc = w[49]; acc -= A[209] * w[50]; w[49] = acc; }
+    { double acc = w[48]; acc -= A[205] * w[49]; acc -= A[206] * w[50]; w[48] = acc; }
+    { int p = 48 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    w[36] -= off[127] * w[48];
+    w[37] -= off[128] * w[48];
+    w[38] -= off[129] * w[48];
+    w[36] -= off[130] * w[49];
+    w[37] -= off[131] * w[49];
+    w[38] -= off[132] * w[49];
+    w[36] -= off[133] * w[50];
+    w[37] -= off[134] * w[50];
+    { double acc = w[39]; w[39] = acc * (1.0 / A[123]); }
+    { double acc = w[40]; acc -= A[132] * w[39]; w[40] = acc * (1.0 / A[133]); }
+    { double acc = w[41]; acc -= A[141] * w[39]; acc -= A[142] * w[40]; w[41] = acc * (1.0 / A[143]); }
+    { double acc = w[42]; acc -= A[150] * w[39]; acc -= A[151] * w[40]; acc -= A[152] * w[41]; w[42] = acc * (1.0 / A[153]); }
+    { double acc = w[43]; acc -= A[159] * w[39]; acc -= A[160] * w[40]; acc -= A[161] * w[41]; acc -= A[162] * w[42]; w[43] = acc * (1.0 / A[163]); }
+    { double acc = w[44]; acc -= A[168] * w[39]; acc -= A[169] * w[40]; acc -= A[170] * w[41]; acc -= A[171] * w[42]; acc -= A[172] * w[43]; w[44] = acc * (1.0 / A[173]); }
+    { double acc = w[45]; acc -= A[177] * w[39]; acc -= A[178] * w[40]; acc -= A[179] * w[41]; acc -= A[180] * w[42]; acc -= A[181] * w[43]; acc -= A[182] * w[44]; w[45] = acc * (1.0 / A[183]); }
+    { double acc = w[46]; acc -= A[186] * w[39]; acc -= A[187] * w[40]; acc -= A[188] * w[41]; acc -= A[189] * w[42]; acc -= A[190] * w[43]; acc -= A[191] * w[44]; acc -= A[192] * w[45]; w[46] = acc * (1.0 / A[193]); }
+    { double acc = w[47]; acc -= A[195] * w[39]; acc -= A[196] * w[40]; acc -= A[197] * w[41]; acc -= A[198] * w[42]; acc -= A[199] * w[43]; acc -= A[200] * w[44]; acc -= A[201] * w[45]; acc -= A[202] * w[46]; w[47] = acc * (1.0 / A[203]); }
+    { double acc = w[46]; acc -= A[194] * w[47]; w[46] = acc; }
+    { double acc = w[45]; acc -= A[184] * w[46]; acc -= A[185] * w[47]; w[45] = acc; }
+    { double acc = w[44]; acc -= A[174] * w[45]; acc -= A[175] * w[46]; acc -= A[176] * w[47]; w[44] = acc; }
+    { double acc = w[43]; acc -= A[164] * w[44]; acc -= A[165] * w[45]; acc -= A[166] * w[46]; acc -= A[167] * w[47]; w[43] = acc; }
+    { double acc = w[42]; acc -= A[154] * w[43]; acc -= A[155] * w[44]; acc -= A[156] * w[45]; acc -= A[157] * w[46]; acc -= A[158] * w[47]; w[42] = acc; }
+    { double acc = w[41]; acc -= A[144] * w[42]; acc -= A[145] * w[43]; acc -= A[146] * w[44]; acc -= A[147] * w[45]; acc -= A[148] * w[46]; acc -= A[149] * w[47]; w[41] = acc; }
+    { double acc = w[40]; acc -= A[134] * w[41]; acc -= A[135] * w[42]; acc -= A[136] * w[43]; acc -= A[137] * w[44]; acc -= A[138] * w[45]; acc -= A[139] * w[46]; acc -= A[140] * w[47]; w[40] = acc; }
+    { double acc = w[39]; acc -= A[124] * w[40]; acc -= A[125] * w[41]; acc -= A[126] * w[42]; acc -= A[127] * w[43]; acc -= A[128] * w[44]; acc -= A[129] * w[45]; acc -= A[130] * w[46]; acc -= A[131] * w[47]; w[39] = acc; }
+    { int p = 39 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
+    { int p = 39 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { int p = 39 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
+    { int p = 39 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
+    { int p = 39 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
+    { int p = 39 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
+    { int p = 39 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
+    { int p = 39 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
+    { int p = 39 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
+    w[15] -= off[109] * w[39];
+    w[16] -= off[110] * w[39];
+    w[15] -= off[111] * w[40];
+    w[16] -= off[112] * w[40];
+    w[15] -= off[113] * w[41];
+    w[16] -= off[114] * w[41];
+    w[33] -= off[115] * w[42];
+    w[34] -= off[116] * w[42];
+    w[35] -= off[117] * w[42];
+    w[33] -= off[118] * w[43];
+    w[34] -= off[119] * w[43];
+    w[35] -= off[120] * w[43];
+    w[30] -= off[121] * w[44];
+    w[31] -= off[122] * w[45];
+    w[32] -= off[123] * w[46];
+    w[33] -= off[124] * w[47];
+    w[34] -= off[125] * w[47];
+    w[35] -= off[126] * w[47];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[114]); }
+    { double acc = w[37]; acc -= A[117] * w[36]; w[37] = acc * (1.0 / A[118]); }
+    { double acc = w[38]; acc -= A[120] * w[36]; acc -= A[121] * w[37]; w[38] = acc * (1.0 / A[122]); }
+    { double acc = w[37]; acc -= A[119] * w[38]; w[37] = acc; }
+    { double acc = w[36]; acc -= A[115] * w[37]; acc -= A[116] * w[38]; w[36] = acc; }
+    { int p = 36 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
+    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
+    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    w[3] -= off[95] * w[36];
+    w[5] -= off[96] * w[36];
+    w[8] -= off[97] * w[37];
+    w[13] -= off[98] * w[37];
+    w[14] -= off[99] * w[37];
+    w[27] -= off[100] * w[37];
+    w[28] -= off[101] * w[37];
+    w[29] -= off[102] * w[37];
+    w[8] -= off[103] * w[38];
+    w[13] -= off[104] * w[38];
+    w[14] -= off[105] * w[38];
+    w[27] -= off[106] * w[38];
+    w[28] -= off[107] * w[38];
+    w[29] -= off[108] * w[38];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[113]); }
+    w[9] -= off[91] * w[35];
+    w[15] -= off[92] * w[35];
+    w[16] -= off[93] * w[35];
+    w[22] -= off[94] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[112]); }
+    w[10] -= off[87] * w[34];
+    w[15] -= off[88] * w[34];
+    w[16] -= off[89] * w[34];
+    w[22] -= off[90] * w[34];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[33]; w[33] = acc * (1.0 / A[111]); }
+    w[6] -= off[84] * w[33];
+    w[16] -= off[85] * w[33];
+    w[22] -= off[86] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[110]); }
+    w[6] -= off[81] * w[32];
+    w[16] -= off[82] * w[32];
+    w[22] -= off[83] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[109]); }
+    w[10] -= off[77] * w[31];
+    w[15] -= off[78] * w[31];
+    w[16] -= off[79] * w[31];
+    w[22] -= off[80] * w[31];
+    { double acc = w[30]; w[30] = acc * (1.0 / A[108]); }
+    w[9] -= off[73] * w[30];
+    w[15] -= off[74] * w[30];
+    w[16] -= off[75] * w[30];
+    w[22] -= off[76] * w[30];
+    { double acc = w[29]; w[29] = acc * (1.0 / A[107]); }
+    w[9] -= off[69] * w[29];
+    w[15] -= off[70] * w[29];
+    w[16] -= off[71] * w[29];
+    w[22] -= off[72] * w[29];
+    { double acc = w[28]; w[28] = acc * (1.0 / A[106]); }
+    w[10] -= off[65] * w[28];
+    w[15] -= off[66] * w[28];
+    w[16] -= off[67] * w[28];
+    w[22] -= off[68] * w[28];
+    { double acc = w[27]; w[27] = acc * (1.0 / A[105]); }
+    w[6] -= off[62] * w[27];
+    w[16] -= off[63] * w[27];
+    w[22] -= off[64] * w[27];
+    { double acc = w[24]; w[24] = acc * (1.0 / A[96]); }
+    { double acc = w[25]; acc -= A[99] * w[24]; w[25] = acc * (1.0 / A[100]); }
+    { double acc = w[26]; acc -= A[102] * w[24]; acc -= A[103] * w[25]; w[26] = acc * (1.0 / A[104]); }
+    { double acc = w[25]; acc -= A[101] * w[26]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[97] * w[25]; acc -= A[98] * w[26]; w[24] = acc; }
+    { int p = 24 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 24 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 24 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    w[17] -= off[54] * w[24];
+    w[18] -= off[55] * w[24];
+    w[19] -= off[56] * w[24];
+    w[17] -= off[57] * w[25];
+    w[18] -= off[58] * w[25];
+    w[19] -= off[59] * w[25];
+    w[17] -= off[60] * w[26];
+    w[18] -= off[61] * w[26];
+    { double acc = w[15]; w[15] = acc * (1.0 / A[15]); }
+    { double acc = w[16]; acc -= A[24] * w[15]; w[16] = acc * (1.0 / A[25]); }
+    { double acc = w[17]; acc -= A[33] * w[15]; acc -= A[34] * w[16]; w[17] = acc * (1.0 / A[35]); }
+    { double acc = w[18]; acc -= A[42] * w[15]; acc -= A[43] * w[16]; acc -= A[44] * w[17]; w[18] = acc * (1.0 / A[45]); }
+    { double acc = w[19]; acc -= A[51] * w[15]; acc -= A[52] * w[16]; acc -= A[53] * w[17]; acc -= A[54] * w[18]; w[19] = acc * (1.0 / A[55]); }
+    { double acc = w[20]; acc -= A[60] * w[15]; acc -= A[61] * w[16]; acc -= A[62] * w[17]; acc -= A[63] * w[18]; acc -= A[64] * w[19]; w[20] = acc * (1.0 / A[65]); }
+    { double acc = w[21]; acc -= A[69] * w[15]; acc -= A[70] * w[16]; acc -= A[71] * w[17]; acc -= A[72] * w[18]; acc -= A[73] * w[19]; acc -= A[74] * w[20]; w[21] = acc * (1.0 / A[75]); }
+    { double acc = w[22]; acc -= A[78] * w[15]; acc -= A[79] * w[16]; acc -= A[80] * w[17]; acc -= A[81] * w[18]; acc -= A[82] * w[19]; acc -= A[83] * w[20]; acc -= A[84] * w[21]; w[22] = acc * (1.0 / A[85]); }
+    { double acc = w[23]; acc -= A[87] * w[15]; acc -= A[88] * w[16]; acc -= A[89] * w[17]; acc -= A[90] * w[18]; acc -= A[91] * w[19]; acc -= A[92] * w[20]; acc -= A[93] * w[21]; acc -= A[94] * w[22]; w[23] = acc * (1.0 / A[95]); }
+    { double acc = w[22]; acc -= A[86] * w[23]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[76] * w[22]; acc -= A[77] * w[23]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[66] * w[21]; acc -= A[67] * w[22]; acc -= A[68] * w[23]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[56] * w[20]; acc -= A[57] * w[21]; acc -= A[58] * w[22]; acc -= A[59] * w[23]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[46] * w[19]; acc -= A[47] * w[20]; acc -= A[48] * w[21]; acc -= A[49] * w[22]; acc -= A[50] * w[23]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[36] * w[18]; acc -= A[37] * w[19]; acc -= A[38] * w[20]; acc -= A[39] * w[21]; acc -= A[40] * w[22]; acc -= A[41] * w[23]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[26] * w[17]; acc -= A[27] * w[18]; acc -= A[28] * w[19]; acc -= A[29] * w[20]; acc -= A[30] * w[21]; acc -= A[31] * w[22]; acc -= A[32] * w[23]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[16] * w[16]; acc -= A[17] * w[17]; acc -= A[18] * w[18]; acc -= A[19] * w[19]; acc -= A[20] * w[20]; acc -= A[21] * w[21]; acc -= A[22] * w[22]; acc -= A[23] * w[23]; w[15] = acc; }
+    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    w[3] -= off[36] * w[15];
+    w[5] -= off[37] * w[15];
+    w[3] -= off[38] * w[16];
+    w[5] -= off[39] * w[16];
+    w[3] -= off[40] * w[17];
+    w[5] -= off[41] * w[17];
+    w[7] -= off[42] * w[18];
+    w[11] -= off[43] * w[18];
+    w[12] -= off[44] * w[18];
+    w[7] -= off[45] * w[19];
+    w[11] -= off[46] * w[19];
+    w[12] -= off[47] * w[19];
+    w[9] -= off[48] * w[20];
+    w[10] -= off[49] * w[21];
+    w[6] -= off[50] * w[22];
+    w[7] -= off[51] * w[23];
+    w[11] -= off[52] * w[23];
+    w[12] -= off[53] * w[23];
+    { double acc = w[14]; w[14] = acc * (1.0 / A[14]); }
+    w[1] -= off[32] * w[14];
+    w[3] -= off[33] * w[14];
+    w[4] -= off[34] * w[14];
+    w[5] -= off[35] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[13]); }
+    w[0] -= off[28] * w[13];
+    w[3] -= off[29] * w[13];
+    w[4] -= off[30] * w[13];
+    w[5] -= off[31] * w[13];
+}
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    (void)piv;
+    { double acc = w[12]; w[12] = acc * (1.0 / A[12]); }
+    w[0] -= off[24] * w[12];
+    w[3] -= off[25] * w[12];
+    w[4] -= off[26] * w[12];
+    w[5] -= off[27] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[11]); }
+    w[1] -= off[20] * w[11];
+    w[3] -= off[21] * w[11];
+    w[4] -= off[22] * w[11];
+    w[5] -= off[23] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[10]); }
+    w[1] -= off[16] * w[10];
+    w[3] -= off[17] * w[10];
+    w[4] -= off[18] * w[10];
+    w[5] -= off[19] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[9]); }
+    w[0] -= off[12] * w[9];
+    w[3] -= off[13] * w[9];
+    w[4] -= off[14] * w[9];
+    w[5] -= off[15] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[8]); }
+    w[2] -= off[9] * w[8];
+    w[3] -= off[10] * w[8];
+    w[4] -= off[11] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[7]); }
+    w[2] -= off[6] * w[7];
+    w[3] -= off[7] * w[7];
+    w[4] -= off[8] * w[7];
+    { double acc = w[6]; w[6] = acc * (1.0 / A[6]); }
+    w[2] -= off[3] * w[6];
+    w[3] -= off[4] * w[6];
+    w[4] -= off[5] * w[6];
+    { double acc = w[5]; w[5] = acc * (1.0 / A[5]); }
+    w[3] -= off[1] * w[5];
+    w[4] -= off[2] * w[5];
+    { double acc = w[4]; w[4] = acc * (1.0 / A[4]); }
+    w[3] -= off[0] * w[4];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
+    solve_transposed_digging_0(A, off, piv, w);
+    solve_transposed_digging_1(A, off, piv, w);
+    solve_transposed_digging_2(A, off, piv, w);
+    solve_transposed_digging_3(A, off, piv, w);
+    solve_transposed_digging_4(A, off, piv, w);
+    for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
+}
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12106,7 +12528,7 @@ const kinegen_model excavator_euler_zxy_digging = {
     .row_order = row_order_digging, .col_order = col_order_digging,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 220, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -12594,6 +13016,430 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     solve_level_cut_4(A, off, piv, b, y);
     for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_level_cut) */
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[81]; w[81] = acc * (1.0 / A[309]); }
+    { double acc = w[82]; acc -= A[312] * w[81]; w[82] = acc * (1.0 / A[313]); }
+    { double acc = w[83]; acc -= A[315] * w[81]; acc -= A[316] * w[82]; w[83] = acc * (1.0 / A[317]); }
+    { double acc = w[82]; acc -= A[314] * w[83]; w[82] = acc; }
+    { double acc = w[81]; acc -= A[310] * w[82]; acc -= A[311] * w[83]; w[81] = acc; }
+    { int p = 81 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    w[78] -= off[230] * w[81];
+    w[79] -= off[231] * w[81];
+    w[80] -= off[232] * w[81];
+    w[78] -= off[233] * w[82];
+    w[79] -= off[234] * w[82];
+    w[80] -= off[235] * w[82];
+    w[78] -= off[236] * w[83];
+    w[79] -= off[237] * w[83];
+    { double acc = w[78]; w[78] = acc * (1.0 / A[300]); }
+    { double acc = w[79]; acc -= A[303] * w[78]; w[79] = acc * (1.0 / A[304]); }
+    { double acc = w[80]; acc -= A[306] * w[78]; acc -= A[307] * w[79]; w[80] = acc * (1.0 / A[308]); }
+    { double acc = w[79]; acc -= A[305] * w[80]; w[79] = acc; }
+    { double acc = w[78]; acc -= A[301] * w[79]; acc -= A[302] * w[80]; w[78] = acc; }
+    { int p = 78 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    w[19] -= off[216] * w[78];
+    w[20] -= off[217] * w[78];
+    w[44] -= off[218] * w[79];
+    w[45] -= off[219] * w[79];
+    w[55] -= off[220] * w[79];
+    w[75] -= off[221] * w[79];
+    w[76] -= off[222] * w[79];
+    w[77] -= off[223] * w[79];
+    w[44] -= off[224] * w[80];
+    w[45] -= off[225] * w[80];
+    w[55] -= off[226] * w[80];
+    w[75] -= off[227] * w[80];
+    w[76] -= off[228] * w[80];
+    w[77] -= off[229] * w[80];
+    { double acc = w[77]; w[77] = acc * (1.0 / A[299]); }
+    w[40] -= off[212] * w[77];
+    w[69] -= off[213] * w[77];
+    w[70] -= off[214] * w[77];
+    w[72] -= off[215] * w[77];
+    { double acc = w[76]; w[76] = acc * (1.0 / A[298]); }
+    w[54] -= off[208] * w[76];
+    w[69] -= off[209] * w[76];
+    w[70] -= off[210] * w[76];
+    w[72] -= off[211] * w[76];
+    { double acc = w[75]; w[75] = acc * (1.0 / A[297]); }
+    w[41] -= off[205] * w[75];
+    w[70] -= off[206] * w[75];
+    w[72] -= off[207] * w[75];
+    { double acc = w[69]; w[69] = acc * (1.0 / A[261]); }
+    { double acc = w[70]; acc -= A[267] * w[69]; w[70] = acc * (1.0 / A[268]); }
+    { double acc = w[71]; acc -= A[273] * w[69]; acc -= A[274] * w[70]; w[71] = acc * (1.0 / A[275]); }
+    { double acc = w[72]; acc -= A[279] * w[69]; acc -= A[280] * w[70]; acc -= A[281] * w[71]; w[72] = acc * (1.0 / A[282]); }
+    { double acc = w[73]; acc -= A[285] * w[69]; acc -= A[286] * w[70]; acc -= A[287] * w[71]; acc -= A[288] * w[72]; w[73] = acc * (1.0 / A[289]); }
+    { double acc = w[74]; acc -= A[291] * w[69]; acc -= A[292] * w[70]; acc -= A[293] * w[71]; acc -= A[294] * w[72]; acc -= A[295] * w[73]; w[74] = acc * (1.0 / A[296]); }
+    { double acc = w[73]; acc -= A[290] * w[74]; w[73] = acc; }
+    { double acc = w[72]; acc -= A[283] * w[73]; acc -= A[284] * w[74]; w[72] = acc; }
+    { double acc = w[71]; acc -= A[276] * w[72]; acc -= A[277] * w[73]; acc -= A[278] * w[74]; w[71] = acc; }
+    { double acc = w[70]; acc -= A[269] * w[71]; acc -= A[270] * w[72]; acc -= A[271] * w[73]; acc -= A[272] * w[74]; w[70] = acc; }
+    { double acc = w[69]; acc -= A[262] * w[70]; acc -= A[263] * w[71]; acc -= A[264] * w[72]; acc -= A[265] * w[73]; acc -= A[266] * w[74]; w[69] = acc; }
+    { int p = 69 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
+    { int p = 69 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 69 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { int p = 69 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
+    { int p = 69 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    { int p = 69 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    w[19] -= off[193] * w[69];
+    w[20] -= off[194] * w[69];
+    w[19] -= off[195] * w[70];
+    w[20] -= off[196] * w[70];
+    w[40] -= off[197] * w[71];
+    w[43] -= off[198] * w[71];
+    w[54] -= off[199] * w[72];
+    w[65] -= off[200] * w[72];
+    w[41] -= off[201] * w[73];
+    w[42] -= off[202] * w[73];
+    w[23] -= off[203] * w[74];
+    w[24] -= off[204] * w[74];
+    { double acc = w[66]; w[66] = acc * (1.0 / A[252]); }
+    { double acc = w[67]; acc -= A[255] * w[66]; w[67] = acc * (1.0 / A[256]); }
+    { double acc = w[68]; acc -= A[258] * w[66]; acc -= A[259] * w[67]; w[68] = acc * (1.0 / A[260]); }
+    { double acc = w[67]; acc -= A[257] * w[68]; w[67] = acc; }
+    { double acc = w[66]; acc -= A[253] * w[67]; acc -= A[254] * w[68]; w[66] = acc; }
+    { int p = 66 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
+    { int p = 66 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 66 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    w[62] -= off[185] * w[66];
+    w[63] -= off[186] * w[66];
+    w[64] -= off[187] * w[66];
+    w[62] -= off[188] * w[67];
+    w[63] -= off[189] * w[67];
+    w[64] -= off[190] * w[67];
+    w[62] -= off[191] * w[68];
+    w[63] -= off[192] * w[68];
+    { double acc = w[65]; w[65] = acc * (1.0 / A[251]); }
+    w[23] -= off[181] * w[65];
+    w[24] -= off[182] * w[65];
+    w[27] -= off[183] * w[65];
+    w[53] -= off[184] * w[65];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[62]; w[62] = acc * (1.0 / A[242]); }
+    { double acc = w[63]; acc -= A[245] * w[62]; w[63] = acc * (1.0 / A[246]); }
+    { double acc = w[64]; acc -= A[248] * w[62]; acc -= A[249] * w[63]; w[64] = acc * (1.0 / A[250]); }
+    { double acc = w[63]; acc -= A[247] * w[64]; w[63] = acc; }
+    { double acc = w[62]; acc -= A[243] * w[63]; acc -= A[244] * w[64]; w[62] = acc; }
+    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    w[15] -= off[167] * w[62];
+    w[16] -= off[168] * w[62];
+    w[35] -= off[169] * w[63];
+    w[36] -= off[170] * w[63];
+    w[37] -= off[171] * w[63];
+    w[38] -= off[172] * w[63];
+    w[39] -= off[173] * w[63];
+    w[52] -= off[174] * w[63];
+    w[35] -= off[175] * w[64];
+    w[36] -= off[176] * w[64];
+    w[37] -= off[177] * w[64];
+    w[38] -= off[178] * w[64];
+    w[39] -= off[179] * w[64];
+    w[52] -= off[180] * w[64];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[233]); }
+    { double acc = w[60]; acc -= A[236] * w[59]; w[60] = acc * (1.0 / A[237]); }
+    { double acc = w[61]; acc -= A[239] * w[59]; acc -= A[240] * w[60]; w[61] = acc * (1.0 / A[241]); }
+    { double acc = w[60]; acc -= A[238] * w[61]; w[60] = acc; }
+    { double acc = w[59]; acc -= A[234] * w[60]; acc -= A[235] * w[61]; w[59] = acc; }
+    { int p = 59 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
+    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
+    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    w[49] -= off[159] * w[59];
+    w[50] -= off[160] * w[59];
+    w[51] -= off[161] * w[59];
+    w[49] -= off[162] * w[60];
+    w[50] -= off[163] * w[60];
+    w[51] -= off[164] * w[60];
+    w[49] -= off[165] * w[61];
+    w[50] -= off[166] * w[61];
+    { double acc = w[56]; w[56] = acc * (1.0 / A[224]); }
+    { double acc = w[57]; acc -= A[227] * w[56]; w[57] = acc * (1.0 / A[228]); }
+    { double acc = w[58]; acc -= A[230] * w[56]; acc -= A[231] * w[57]; w[58] = acc * (1.0 / A[232]); }
+    { double acc = w[57]; acc -= A[229] * w[58]; w[57] = acc; }
+    { double acc = w[56]; acc -= A[225] * w[57]; acc -= A[226] * w[58]; w[56] = acc; }
+    { int p = 56 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
+    { int p = 56 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
+    { int p = 56 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    w[46] -= off[151] * w[56];
+    w[47] -= off[152] * w[56];
+    w[48] -= off[153] * w[56];
+    w[46] -= off[154] * w[57];
+    w[47] -= off[155] * w[57];
+    w[48] -= off[156] * w[57];
+    w[46] -= off[157] * w[58];
+    w[47] -= off[158] * w[58];
+    { double acc = w[55]; w[55] = acc * (1.0 / A[223]); }
+    w[19] -= off[147] * w[55];
+    w[20] -= off[148] * w[55];
+    w[21] -= off[149] * w[55];
+    w[34] -= off[150] * w[55];
+    { double acc = w[54]; w[54] = acc * (1.0 / A[222]); }
+    w[19] -= off[143] * w[54];
+    w[20] -= off[144] * w[54];
+    w[21] -= off[145] * w[54];
+    w[34] -= off[146] * w[54];
+    { double acc = w[53]; w[53] = acc * (1.0 / A[221]); }
+    w[19] -= off[139] * w[53];
+    w[20] -= off[140] * w[53];
+    w[21] -= off[141] * w[53];
+    w[34] -= off[142] * w[53];
+    { double acc = w[52]; w[52] = acc * (1.0 / A[220]); }
+    w[19] -= off[135] * w[52];
+    w[20] -= off[136] * w[52];
+    w[21] -= off[137] * w[52];
+    w[34] -= off[138] * w[52];
+    { double acc = w[49]; w[49] = acc * (1.0 / A[211]); }
+    { double acc = w[50]; acc -= A[214] * w[49]; w[50] = acc * (1.0 / A[215]); }
+    { double acc = w[51]; acc -= A[217] * w[49]; acc -= A[218] * w[50]; w[51] = acc * (1.0 / A[219]); }
+    { double acc = w[50]; acc -= A[216] * w[51]; w[50] = acc; }
+    { double acc = w[49]; acc -= A[212] * w[50]; acc -= A[213] * w[51]; w[49] = acc; }
+    { int p = 49 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { int p = 49 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    { int p = 49 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    w[3] -= off[121] * w[49];
+    w[5] -= off[122] * w[49];
+    w[8] -= off[123] * w[50];
+    w[13] -= off[124] * w[50];
+    w[14] -= off[125] * w[50];
+    w[31] -= off[126] * w[50];
+    w[32] -= off[127] * w[50];
+    w[33] -= off[128] * w[50];
+    w[8] -= off[129] * w[51];
+    w[13] -= off[130] * w[51];
+    w[14] -= off[131] * w[51];
+    w[31] -= off[132] * w[51];
+    w[32] -= off[133] * w[51];
+    w[33] -= off[134] * w[51];
+    { double acc = w[46]; w[46] = acc * (1.0 / A[202]); }
+    { double acc = w[47]; acc -= A[205] * w[46]; w[47] = acc * (1.0 / A[206]); }
+    { double acc = w[48]; acc -= A[208] * w[46]; acc -= A[209] * w[47]; w[48] = acc * (1.0 / A[210]); }
+    { double acc = w[47]; acc -= A[207] * w[48]; w[47] = acc; }
+    { double acc = w[46]; acc -= A[203] * w[47]; acc -= A[204] * w[48]; w[46] = acc; }
+    { int p = 46 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
+    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    w[3] -= off[107] * w[46];
+    w[5] -= off[108] * w[46];
+    w[7] -= off[109] * w[47];
+    w[11] -= off[110] * w[47];
+    w[12] -= off[111] * w[47];
+    w[28] -= off[112] * w[47];
+    w[29] -= off[113] * w[47];
+    w[30] -= off[114] * w[47];
+    w[7] -= off[115] * w[48];
+    w[11] -= off[116] * w[48];
+    w[12] -= off[117] * w[48];
+    w[28] -= off[118] * w[48];
+    w[29] -= off[119] * w[48];
+    w[30] -= off[120] * w[48];
+    { double acc = w[45]; w[45] = acc * (1.0 / A[201]); }
+    w[20] -= off[104] * w[45];
+    w[21] -= off[105] * w[45];
+    w[22] -= off[106] * w[45];
+    { double acc = w[44]; w[44] = acc * (1.0 / A[200]); }
+    w[17] -= off[100] * w[44];
+    w[19] -= off[101] * w[44];
+    w[20] -= off[102] * w[44];
+    w[21] -= off[103] * w[44];
+    { double acc = w[43]; w[43] = acc * (1.0 / A[199]); }
+    w[23] -= off[96] * w[43];
+    w[24] -= off[97] * w[43];
+    w[25] -= off[98] * w[43];
+    w[27] -= off[99] * w[43];
+    { double acc = w[42]; w[42] = acc * (1.0 / A[198]); }
+    w[24] -= off[93] * w[42];
+    w[26] -= off[94] * w[42];
+    w[27] -= off[95] * w[42];
+    { double acc = w[41]; w[41] = acc * (1.0 / A[197]); }
+    w[20] -= off[90] * w[41];
+    w[21] -= off[91] * w[41];
+    w[22] -= off[92] * w[41];
+}
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    (void)piv;
+    { double acc = w[40]; w[40] = acc * (1.0 / A[196]); }
+    w[17] -= off[86] * w[40];
+    w[19] -= off[87] * w[40];
+    w[20] -= off[88] * w[40];
+    w[21] -= off[89] * w[40];
+    { double acc = w[39]; w[39] = acc * (1.0 / A[195]); }
+    w[17] -= off[82] * w[39];
+    w[19] -= off[83] * w[39];
+    w[20] -= off[84] * w[39];
+    w[21] -= off[85] * w[39];
+    { double acc = w[38]; w[38] = acc * (1.0 / A[194]); }
+    w[20] -= off[79] * w[38];
+    w[21] -= off[80] * w[38];
+    w[22] -= off[81] * w[38];
+    { double acc = w[37]; w[37] = acc * (1.0 / A[193]); }
+    w[6] -= off[76] * w[37];
+    w[16] -= off[77] * w[37];
+    w[18] -= off[78] * w[37];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[192]); }
+    w[10] -= off[72] * w[36];
+    w[15] -= off[73] * w[36];
+    w[16] -= off[74] * w[36];
+    w[18] -= off[75] * w[36];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[191]); }
+    w[9] -= off[68] * w[35];
+    w[15] -= off[69] * w[35];
+    w[16] -= off[70] * w[35];
+    w[18] -= off[71] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[190]); }
+    w[10] -= off[64] * w[34];
+    w[15] -= off[65] * w[34];
+    w[16] -= off[66] * w[34];
+    w[18] -= off[67] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[189]); }
+    w[9] -= off[60] * w[33];
+    w[15] -= off[61] * w[33];
+    w[16] -= off[62] * w[33];
+    w[18] -= off[63] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[188]); }
+    w[10] -= off[56] * w[32];
+    w[15] -= off[57] * w[32];
+    w[16] -= off[58] * w[32];
+    w[18] -= off[59] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[187]); }
+    w[6] -= off[53] * w[31];
+    w[16] -= off[54] * w[31];
+    w[18] -= off[55] * w[31];
+    { double acc = w[30]; w[30] = acc * (1.0 / A[186]); }
+    w[9] -= off[49] * w[30];
+    w[15] -= off[50] * w[30];
+    w[16] -= off[51] * w[30];
+    w[18] -= off[52] * w[30];
+    { double acc = w[29]; w[29] = acc * (1.0 / A[185]); }
+    w[10] -= off[45] * w[29];
+    w[15] -= off[46] * w[29];
+    w[16] -= off[47] * w[29];
+    w[18] -= off[48] * w[29];
+    { double acc = w[28]; w[28] = acc * (1.0 / A[184]); }
+    w[6] -= off[42] * w[28];
+    w[16] -= off[43] * w[28];
+    w[18] -= off[44] * w[28];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[15]; w[15] = acc * (1.0 / A[15]); }
+    { double acc = w[16]; acc -= A[28] * w[15]; w[16] = acc * (1.0 / A[29]); }
+    { double acc = w[17]; acc -= A[41] * w[15]; acc -= A[42] * w[16]; w[17] = acc * (1.0 / A[43]); }
+    { double acc = w[18]; acc -= A[54] * w[15]; acc -= A[55] * w[16]; acc -= A[56] * w[17]; w[18] = acc * (1.0 / A[57]); }
+    { double acc = w[19]; acc -= A[67] * w[15]; acc -= A[68] * w[16]; acc -= A[69] * w[17]; acc -= A[70] * w[18]; w[19] = acc * (1.0 / A[71]); }
+    { double acc = w[20]; acc -= A[80] * w[15]; acc -= A[81] * w[16]; acc -= A[82] * w[17]; acc -= A[83] * w[18]; acc -= A[84] * w[19]; w[20] = acc * (1.0 / A[85]); }
+    { double acc = w[21]; acc -= A[93] * w[15]; acc -= A[94] * w[16]; acc -= A[95] * w[17]; acc -= A[96] * w[18]; acc -= A[97] * w[19]; acc -= A[98] * w[20]; w[21] = acc * (1.0 / A[99]); }
+    { double acc = w[22]; acc -= A[106] * w[15]; acc -= A[107] * w[16]; acc -= A[108] * w[17]; acc -= A[109] * w[18]; acc -= A[110] * w[19]; acc -= A[111] * w[20]; acc -= A[112] * w[21]; w[22] = acc * (1.0 / A[113]); }
+    { double acc = w[23]; acc -= A[119] * w[15]; acc -= A[120] * w[16]; acc -= A[121] * w[17]; acc -= A[122] * w[18]; acc -= A[123] * w[19]; acc -= A[124] * w[20]; acc -= A[125] * w[21]; acc -= A[126] * w[22]; w[23] = acc * (1.0 / A[127]); }
+    { double acc = w[24]; acc -= A[132] * w[15]; acc -= A[133] * w[16]; acc -= A[134] * w[17]; acc -= A[135] * w[18]; acc -= A[136] * w[19]; acc -= A[137] * w[20]; acc -= A[138] * w[21]; acc -= A[139] * w[22]; acc -= A[140] * w[23]; w[24] = acc * (1.0 / A[141]); }
+    { double acc = w[25]; acc -= A[145] * w[15]; acc -= A[146] * w[16]; acc -= A[147] * w[17]; acc -= A[148] * w[18]; acc -= A[149] * w[19]; acc -= A[150] * w[20]; acc -= A[151] * w[21]; acc -= A[152] * w[22]; acc -= A[153] * w[23]; acc -= A[154] * w[24]; w[25] = acc * (1.0 / A[155]); }
+    { double acc = w[26]; acc -= A[158] * w[15]; acc -= A[159] * w[16]; acc -= A[160] * w[17]; acc -= A[161] * w[18]; acc -= A[162] * w[19]; acc -= A[163] * w[20]; acc -= A[164] * w[21]; acc -= A[165] * w[22]; acc -= A[166] * w[23]; acc -= A[167] * w[24]; acc -= A[168] * w[25]; w[26] = acc * (1.0 / A[169]); }
+    { double acc = w[27]; acc -= A[171] * w[15]; acc -= A[172] * w[16]; acc -= A[173] * w[17]; acc -= A[174] * w[18]; acc -= A[175] * w[19]; acc -= A[176] * w[20]; acc -= A[177] * w[21]; acc -= A[178] * w[22]; acc -= A[179] * w[23]; acc -= A[180] * w[24]; acc -= A[181] * w[25]; acc -= A[182] * w[26]; w[27] = acc * (1.0 / A[183]); }
+    { double acc = w[26]; acc -= A[170] * w[27]; w[26] = acc; }
+    { double acc = w[25]; acc -= A[156] * w[26]; acc -= A[157] * w[27]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[142] * w[25]; acc -= A[143] * w[26]; acc -= A[144] * w[27]; w[24] = acc; }
+    { double acc = w[23]; acc -= A[128] * w[24]; acc -= A[129] * w[25]; acc -= A[130] * w[26]; acc -= A[131] * w[27]; w[23] = acc; }
+    { double acc = w[22]; acc -= A[114] * w[23]; acc -= A[115] * w[24]; acc -= A[116] * w[25]; acc -= A[117] * w[26]; acc -= A[118] * w[27]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[100] * w[22]; acc -= A[101] * w[23]; acc -= A[102] * w[24]; acc -= A[103] * w[25]; acc -= A[104] * w[26]; acc -= A[105] * w[27]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[86] * w[21]; acc -= A[87] * w[22]; acc -= A[88] * w[23]; acc -= A[89] * w[24]; acc -= A[90] * w[25]; acc -= A[91] * w[26]; acc -= A[92] * w[27]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[72] * w[20]; acc -= A[73] * w[21]; acc -= A[74] * w[22]; acc -= A[75] * w[23]; acc -= A[76] * w[24]; acc -= A[77] * w[25]; acc -= A[78] * w[26]; acc -= A[79] * w[27]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[58] * w[19]; acc -= A[59] * w[20]; acc -= A[60] * w[21]; acc -= A[61] * w[22]; acc -= A[62] * w[23]; acc -= A[63] * w[24]; acc -= A[64] * w[25]; acc -= A[65] * w[26]; acc -= A[66] * w[27]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[44] * w[18]; acc -= A[45] * w[19]; acc -= A[46] * w[20]; acc -= A[47] * w[21]; acc -= A[48] * w[22]; acc -= A[49] * w[23]; acc -= A[50] * w[24]; acc -= A[51] * w[25]; acc -= A[52] * w[26]; acc -= A[53] * w[27]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[30] * w[17]; acc -= A[31] * w[18]; acc -= A[32] * w[19]; acc -= A[33] * w[20]; acc -= A[34] * w[21]; acc -= A[35] * w[22]; acc -= A[36] * w[23]; acc -= A[37] * w[24]; acc -= A[38] * w[25]; acc -= A[39] * w[26]; acc -= A[40] * w[27]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[16] * w[16]; acc -= A[17] * w[17]; acc -= A[18] * w[18]; acc -= A[19] * w[19]; acc -= A[20] * w[20]; acc -= A[21] * w[21]; acc -= A[22] * w[22]; acc -= A[23] * w[23]; acc -= A[24] * w[24]; acc -= A[25] * w[25]; acc -= A[26] * w[26]; acc -= A[27] * w[27]; w[15] = acc; }
+    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
+    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    w[3] -= off[36] * w[15];
+    w[5] -= off[37] * w[15];
+    w[3] -= off[38] * w[16];
+    w[5] -= off[39] * w[16];
+    w[9] -= off[40] * w[17];
+    w[6] -= off[41] * w[18];
+}
+static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    (void)piv;
+    { double acc = w[14]; w[14] = acc * (1.0 / A[14]); }
+    w[1] -= off[32] * w[14];
+    w[3] -= off[33] * w[14];
+    w[4] -= off[34] * w[14];
+    w[5] -= off[35] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[13]); }
+    w[0] -= off[28] * w[13];
+    w[3] -= off[29] * w[13];
+    w[4] -= off[30] * w[13];
+    w[5] -= off[31] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[12]); }
+    w[1] -= off[24] * w[12];
+    w[3] -= off[25] * w[12];
+    w[4] -= off[26] * w[12];
+    w[5] -= off[27] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[11]); }
+    w[0] -= off[20] * w[11];
+    w[3] -= off[21] * w[11];
+    w[4] -= off[22] * w[11];
+    w[5] -= off[23] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[10]); }
+    w[1] -= off[16] * w[10];
+    w[3] -= off[17] * w[10];
+    w[4] -= off[18] * w[10];
+    w[5] -= off[19] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[9]); }
+    w[0] -= off[12] * w[9];
+    w[3] -= off[13] * w[9];
+    w[4] -= off[14] * w[9];
+    w[5] -= off[15] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[8]); }
+    w[2] -= off[9] * w[8];
+    w[3] -= off[10] * w[8];
+    w[4] -= off[11] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[7]); }
+    w[2] -= off[6] * w[7];
+    w[3] -= off[7] * w[7];
+    w[4] -= off[8] * w[7];
+    { double acc = w[6]; w[6] = acc * (1.0 / A[6]); }
+    w[2] -= off[3] * w[6];
+    w[3] -= off[4] * w[6];
+    w[4] -= off[5] * w[6];
+    { double acc = w[5]; w[5] = acc * (1.0 / A[5]); }
+    w[3] -= off[1] * w[5];
+    w[4] -= off[2] * w[5];
+    { double acc = w[4]; w[4] = acc * (1.0 / A[4]); }
+    w[3] -= off[0] * w[4];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
+    solve_transposed_level_cut_0(A, off, piv, w);
+    solve_transposed_level_cut_1(A, off, piv, w);
+    solve_transposed_level_cut_2(A, off, piv, w);
+    solve_transposed_level_cut_3(A, off, piv, w);
+    solve_transposed_level_cut_4(A, off, piv, w);
+    for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
+}
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12610,7 +13456,7 @@ const kinegen_model excavator_euler_zxy_level_cut = {
     .row_order = row_order_level_cut, .col_order = col_order_level_cut,
     .n_store = 318, .n_diag = 182, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 238, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -12646,7 +13492,7 @@ const kinegen_model excavator_euler_zxy_trench_wall = {
     .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
     .n_store = 318, .n_diag = 182, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 238, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -12682,7 +13528,7 @@ const kinegen_model excavator_euler_zxy_bucket_toggle = {
     .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 220, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -12718,7 +13564,7 @@ const kinegen_model excavator_euler_zxy_bucket_stroke = {
     .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 220, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -12754,7 +13600,7 @@ const kinegen_model excavator_euler_zxy_bucket_near_toggle = {
     .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 220, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -12790,7 +13636,7 @@ const kinegen_model excavator_euler_zxy_digging_fast = {
     .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 220, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -12826,7 +13672,7 @@ const kinegen_model excavator_euler_zxy_digging_paced = {
     .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 220, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -12862,7 +13708,7 @@ const kinegen_model excavator_euler_zxy_oscillation = {
     .row_order = row_order_oscillation, .col_order = col_order_oscillation,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 220, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxy.h': 'f4114b4720d374dbe2b702f9a2ca514e8495a4d83bd1e22076405708dec2df73', 'excavator_euler_zxy.c': '3f43ec4f98d24e202a4a222b1a9eefd145657bd2476b2ae0d17bc3022c720080'}
+C_FILES = {'excavator_euler_zxy.h': 'f4114b4720d374dbe2b702f9a2ca514e8495a4d83bd1e22076405708dec2df73', 'excavator_euler_zxy.c': 'bed23c0e3479dc065045217d422625953f2b1e2e36a9eb05a63f7323b4f96cff'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

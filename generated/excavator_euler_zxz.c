@@ -11933,6 +11933,445 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     solve_digging_4(A, off, piv, b, y);
     for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_digging) */
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[83]; w[83] = acc * (1.0 / A[383]); }
+    w[64] -= off[240] * w[83];
+    w[66] -= off[241] * w[83];
+    w[70] -= off[242] * w[83];
+    w[81] -= off[243] * w[83];
+    w[82] -= off[244] * w[83];
+    { double acc = w[81]; w[81] = acc * (1.0 / A[379]); }
+    { double acc = w[82]; acc -= A[381] * w[81]; w[82] = acc * (1.0 / A[382]); }
+    { double acc = w[81]; acc -= A[380] * w[82]; w[81] = acc; }
+    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    w[64] -= off[234] * w[81];
+    w[66] -= off[235] * w[81];
+    w[70] -= off[236] * w[81];
+    w[64] -= off[237] * w[82];
+    w[66] -= off[238] * w[82];
+    w[70] -= off[239] * w[82];
+    { double acc = w[72]; w[72] = acc * (1.0 / A[298]); }
+    { double acc = w[73]; acc -= A[307] * w[72]; w[73] = acc * (1.0 / A[308]); }
+    { double acc = w[74]; acc -= A[316] * w[72]; acc -= A[317] * w[73]; w[74] = acc * (1.0 / A[318]); }
+    { double acc = w[75]; acc -= A[325] * w[72]; acc -= A[326] * w[73]; acc -= A[327] * w[74]; w[75] = acc * (1.0 / A[328]); }
+    { double acc = w[76]; acc -= A[334] * w[72]; acc -= A[335] * w[73]; acc -= A[336] * w[74]; acc -= A[337] * w[75]; w[76] = acc * (1.0 / A[338]); }
+    { double acc = w[77]; acc -= A[343] * w[72]; acc -= A[344] * w[73]; acc -= A[345] * w[74]; acc -= A[346] * w[75]; acc -= A[347] * w[76]; w[77] = acc * (1.0 / A[348]); }
+    { double acc = w[78]; acc -= A[352] * w[72]; acc -= A[353] * w[73]; acc -= A[354] * w[74]; acc -= A[355] * w[75]; acc -= A[356] * w[76]; acc -= A[357] * w[77]; w[78] = acc * (1.0 / A[358]); }
+    { double acc = w[79]; acc -= A[361] * w[72]; acc -= A[362] * w[73]; acc -= A[363] * w[74]; acc -= A[364] * w[75]; acc -= A[365] * w[76]; acc -= A[366] * w[77]; acc -= A[367] * w[78]; w[79] = acc * (1.0 / A[368]); }
+    { double acc = w[80]; acc -= A[370] * w[72]; acc -= A[371] * w[73]; acc -= A[372] * w[74]; acc -= A[373] * w[75]; acc -= A[374] * w[76]; acc -= A[375] * w[77]; acc -= A[376] * w[78]; acc -= A[377] * w[79]; w[80] = acc * (1.0 / A[378]); }
+    { double acc = w[79]; acc -= A[369] * w[80]; w[79] = acc; }
+    { double acc = w[78]; acc -= A[359] * w[79]; acc -= A[360] * w[80]; w[78] = acc; }
+    { double acc = w[77]; acc -= A[349] * w[78]; acc -= A[350] * w[79]; acc -= A[351] * w[80]; w[77] = acc; }
+    { double acc = w[76]; acc -= A[339] * w[77]; acc -= A[340] * w[78]; acc -= A[341] * w[79]; acc -= A[342] * w[80]; w[76] = acc; }
+    { double acc = w[75]; acc -= A[329] * w[76]; acc -= A[330] * w[77]; acc -= A[331] * w[78]; acc -= A[332] * w[79]; acc -= A[333] * w[80]; w[75] = acc; }
+    { double acc = w[74]; acc -= A[319] * w[75]; acc -= A[320] * w[76]; acc -= A[321] * w[77]; acc -= A[322] * w[78]; acc -= A[323] * w[79]; acc -= A[324] * w[80]; w[74] = acc; }
+    { double acc = w[73]; acc -= A[309] * w[74]; acc -= A[310] * w[75]; acc -= A[311] * w[76]; acc -= A[312] * w[77]; acc -= A[313] * w[78]; acc -= A[314] * w[79]; acc -= A[315] * w[80]; w[73] = acc; }
+    { double acc = w[72]; acc -= A[299] * w[73]; acc -= A[300] * w[74]; acc -= A[301] * w[75]; acc -= A[302] * w[76]; acc -= A[303] * w[77]; acc -= A[304] * w[78]; acc -= A[305] * w[79]; acc -= A[306] * w[80]; w[72] = acc; }
+    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
+    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
+    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
+    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    w[38] -= off[214] * w[72];
+    w[39] -= off[215] * w[72];
+    w[43] -= off[216] * w[72];
+    w[38] -= off[217] * w[73];
+    w[39] -= off[218] * w[73];
+    w[43] -= off[219] * w[73];
+    w[58] -= off[220] * w[74];
+    w[62] -= off[221] * w[74];
+    w[63] -= off[222] * w[74];
+    w[67] -= off[223] * w[74];
+    w[54] -= off[224] * w[75];
+    w[62] -= off[225] * w[75];
+    w[63] -= off[226] * w[75];
+    w[67] -= off[227] * w[75];
+    w[53] -= off[228] * w[76];
+    w[63] -= off[229] * w[76];
+    w[67] -= off[230] * w[76];
+    w[50] -= off[231] * w[77];
+    w[51] -= off[232] * w[78];
+    w[52] -= off[233] * w[79];
+    { double acc = w[71]; w[71] = acc * (1.0 / A[297]); }
+    w[36] -= off[209] * w[71];
+    w[37] -= off[210] * w[71];
+    w[47] -= off[211] * w[71];
+    w[59] -= off[212] * w[71];
+    w[60] -= off[213] * w[71];
+}
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[62]; w[62] = acc * (1.0 / A[216]); }
+    { double acc = w[63]; acc -= A[225] * w[62]; w[63] = acc * (1.0 / A[226]); }
+    { double acc = w[64]; acc -= A[234] * w[62]; acc -= A[235] * w[63]; w[64] = acc * (1.0 / A[236]); }
+    { double acc = w[65]; acc -= A[243] * w[62]; acc -= A[244] * w[63]; acc -= A[245] * w[64]; w[65] = acc * (1.0 / A[246]); }
+    { double acc = w[66]; acc -= A[252] * w[62]; acc -= A[253] * w[63]; acc -= A[254] * w[64]; acc -= A[255] * w[65]; w[66] = acc * (1.0 / A[256]); }
+    { double acc = w[67]; acc -= A[261] * w[62]; acc -= A[262] * w[63]; acc -= A[263] * w[64]; acc -= A[264] * w[65]; acc -= A[265] * w[66]; w[67] = acc * (1.0 / A[266]); }
+    { double acc = w[68]; acc -= A[270] * w[62]; acc -= A[271] * w[63]; acc -= A[272] * w[64]; acc -= A[273] * w[65]; acc -= A[274] * w[66]; acc -= A[275] * w[67]; w[68] = acc * (1.0 / A[276]); }
+    { double acc = w[69]; acc -= A[279] * w[62]; acc -= A[280] * w[63]; acc -= A[281] * w[64]; acc -= A[282] * w[65]; acc -= A[283] * w[66]; acc -= A[284] * w[67]; acc -= A[285] * w[68]; w[69] = acc * (1.0 / A[286]); }
+    { double acc = w[70]; acc -= A[288] * w[62]; acc -= A[289] * w[63]; acc -= A[290] * w[64]; acc -= A[291] * w[65]; acc -= A[292] * w[66]; acc -= A[293] * w[67]; acc -= A[294] * w[68]; acc -= A[295] * w[69]; w[70] = acc * (1.0 / A[296]); }
+    { double acc = w[69]; acc -= A[287] * w[70]; w[69] = acc; }
+    { double acc = w[68]; acc -= A[277] * w[69]; acc -= A[278] * w[70]; w[68] = acc; }
+    { double acc = w[67]; acc -= A[267] * w[68]; acc -= A[268] * w[69]; acc -= A[269] * w[70]; w[67] = acc; }
+    { double acc = w[66]; acc -= A[257] * w[67]; acc -= A[258] * w[68]; acc -= A[259] * w[69]; acc -= A[260] * w[70]; w[66] = acc; }
+    { double acc = w[65]; acc -= A[247] * w[66]; acc -= A[248] * w[67]; acc -= A[249] * w[68]; acc -= A[250] * w[69]; acc -= A[251] * w[70]; w[65] = acc; }
+    { double acc = w[64]; acc -= A[237] * w[65]; acc -= A[238] * w[66]; acc -= A[239] * w[67]; acc -= A[240] * w[68]; acc -= A[241] * w[69]; acc -= A[242] * w[70]; w[64] = acc; }
+    { double acc = w[63]; acc -= A[227] * w[64]; acc -= A[228] * w[65]; acc -= A[229] * w[66]; acc -= A[230] * w[67]; acc -= A[231] * w[68]; acc -= A[232] * w[69]; acc -= A[233] * w[70]; w[63] = acc; }
+    { double acc = w[62]; acc -= A[217] * w[63]; acc -= A[218] * w[64]; acc -= A[219] * w[65]; acc -= A[220] * w[66]; acc -= A[221] * w[67]; acc -= A[222] * w[68]; acc -= A[223] * w[69]; acc -= A[224] * w[70]; w[62] = acc; }
+    { int p = 62 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    { int p = 62 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { int p = 62 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
+    { int p = 62 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 62 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { int p = 62 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
+    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    w[38] -= off[188] * w[62];
+    w[39] -= off[189] * w[62];
+    w[43] -= off[190] * w[62];
+    w[38] -= off[191] * w[63];
+    w[39] -= off[192] * w[63];
+    w[43] -= off[193] * w[63];
+    w[38] -= off[194] * w[64];
+    w[39] -= off[195] * w[64];
+    w[43] -= off[196] * w[64];
+    w[55] -= off[197] * w[65];
+    w[56] -= off[198] * w[65];
+    w[57] -= off[199] * w[65];
+    w[55] -= off[200] * w[66];
+    w[56] -= off[201] * w[66];
+    w[57] -= off[202] * w[66];
+    w[58] -= off[203] * w[67];
+    w[54] -= off[204] * w[68];
+    w[53] -= off[205] * w[69];
+    w[55] -= off[206] * w[70];
+    w[56] -= off[207] * w[70];
+    w[57] -= off[208] * w[70];
+    { double acc = w[61]; w[61] = acc * (1.0 / A[215]); }
+    w[40] -= off[183] * w[61];
+    w[42] -= off[184] * w[61];
+    w[46] -= off[185] * w[61];
+    w[48] -= off[186] * w[61];
+    w[49] -= off[187] * w[61];
+    { double acc = w[59]; w[59] = acc * (1.0 / A[211]); }
+    { double acc = w[60]; acc -= A[213] * w[59]; w[60] = acc * (1.0 / A[214]); }
+    { double acc = w[59]; acc -= A[212] * w[60]; w[59] = acc; }
+    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
+    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    w[36] -= off[177] * w[59];
+    w[37] -= off[178] * w[59];
+    w[47] -= off[179] * w[59];
+    w[36] -= off[180] * w[60];
+    w[37] -= off[181] * w[60];
+    w[47] -= off[182] * w[60];
+    { double acc = w[58]; w[58] = acc * (1.0 / A[210]); }
+    w[29] -= off[173] * w[58];
+    w[38] -= off[174] * w[58];
+    w[39] -= off[175] * w[58];
+    w[43] -= off[176] * w[58];
+    { double acc = w[57]; w[57] = acc * (1.0 / A[209]); }
+    w[29] -= off[169] * w[57];
+    w[38] -= off[170] * w[57];
+    w[39] -= off[171] * w[57];
+    w[43] -= off[172] * w[57];
+    { double acc = w[56]; w[56] = acc * (1.0 / A[208]); }
+    w[30] -= off[165] * w[56];
+    w[38] -= off[166] * w[56];
+    w[39] -= off[167] * w[56];
+    w[43] -= off[168] * w[56];
+    { double acc = w[55]; w[55] = acc * (1.0 / A[207]); }
+    w[31] -= off[162] * w[55];
+    w[39] -= off[163] * w[55];
+    w[43] -= off[164] * w[55];
+    { double acc = w[54]; w[54] = acc * (1.0 / A[206]); }
+    w[30] -= off[158] * w[54];
+    w[38] -= off[159] * w[54];
+    w[39] -= off[160] * w[54];
+    w[43] -= off[161] * w[54];
+    { double acc = w[53]; w[53] = acc * (1.0 / A[205]); }
+    w[31] -= off[155] * w[53];
+    w[39] -= off[156] * w[53];
+    w[43] -= off[157] * w[53];
+    { double acc = w[52]; w[52] = acc * (1.0 / A[204]); }
+    w[31] -= off[152] * w[52];
+    w[39] -= off[153] * w[52];
+    w[43] -= off[154] * w[52];
+    { double acc = w[51]; w[51] = acc * (1.0 / A[203]); }
+    w[30] -= off[148] * w[51];
+    w[38] -= off[149] * w[51];
+    w[39] -= off[150] * w[51];
+    w[43] -= off[151] * w[51];
+    { double acc = w[50]; w[50] = acc * (1.0 / A[202]); }
+    w[29] -= off[144] * w[50];
+    w[38] -= off[145] * w[50];
+    w[39] -= off[146] * w[50];
+    w[43] -= off[147] * w[50];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[48]; w[48] = acc * (1.0 / A[198]); }
+    { double acc = w[49]; acc -= A[200] * w[48]; w[49] = acc * (1.0 / A[201]); }
+    { double acc = w[48]; acc -= A[199] * w[49]; w[48] = acc; }
+    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    w[40] -= off[138] * w[48];
+    w[42] -= off[139] * w[48];
+    w[46] -= off[140] * w[48];
+    w[40] -= off[141] * w[49];
+    w[42] -= off[142] * w[49];
+    w[46] -= off[143] * w[49];
+    { double acc = w[47]; w[47] = acc * (1.0 / A[197]); }
+    w[8] -= off[130] * w[47];
+    w[13] -= off[131] * w[47];
+    w[14] -= off[132] * w[47];
+    w[26] -= off[133] * w[47];
+    w[27] -= off[134] * w[47];
+    w[28] -= off[135] * w[47];
+    w[36] -= off[136] * w[47];
+    w[37] -= off[137] * w[47];
+    { double acc = w[38]; w[38] = acc * (1.0 / A[116]); }
+    { double acc = w[39]; acc -= A[125] * w[38]; w[39] = acc * (1.0 / A[126]); }
+    { double acc = w[40]; acc -= A[134] * w[38]; acc -= A[135] * w[39]; w[40] = acc * (1.0 / A[136]); }
+    { double acc = w[41]; acc -= A[143] * w[38]; acc -= A[144] * w[39]; acc -= A[145] * w[40]; w[41] = acc * (1.0 / A[146]); }
+    { double acc = w[42]; acc -= A[152] * w[38]; acc -= A[153] * w[39]; acc -= A[154] * w[40]; acc -= A[155] * w[41]; w[42] = acc * (1.0 / A[156]); }
+    { double acc = w[43]; acc -= A[161] * w[38]; acc -= A[162] * w[39]; acc -= A[163] * w[40]; acc -= A[164] * w[41]; acc -= A[165] * w[42]; w[43] = acc * (1.0 / A[166]); }
+    { double acc = w[44]; acc -= A[170] * w[38]; acc -= A[171] * w[39]; acc -= A[172] * w[40]; acc -= A[173] * w[41]; acc -= A[174] * w[42]; acc -= A[175] * w[43]; w[44] = acc * (1.0 / A[176]); }
+    { double acc = w[45]; acc -= A[179] * w[38]; acc -= A[180] * w[39]; acc -= A[181] * w[40]; acc -= A[182] * w[41]; acc -= A[183] * w[42]; acc -= A[184] * w[43]; acc -= A[185] * w[44]; w[45] = acc * (1.0 / A[186]); }
+    { double acc = w[46]; acc -= A[188] * w[38]; acc -= A[189] * w[39]; acc -= A[190] * w[40]; acc -= A[191] * w[41]; acc -= A[192] * w[42]; acc -= A[193] * w[43]; acc -= A[194] * w[44]; acc -= A[195] * w[45]; w[46] = acc * (1.0 / A[196]); }
+    { double acc = w[45]; acc -= A[187] * w[46]; w[45] = acc; }
+    { double acc = w[44]; acc -= A[177] * w[45]; acc -= A[178] * w[46]; w[44] = acc; }
+    { double acc = w[43]; acc -= A[167] * w[44]; acc -= A[168] * w[45]; acc -= A[169] * w[46]; w[43] = acc; }
+    { double acc = w[42]; acc -= A[157] * w[43]; acc -= A[158] * w[44]; acc -= A[159] * w[45]; acc -= A[160] * w[46]; w[42] = acc; }
+    { double acc = w[41]; acc -= A[147] * w[42]; acc -= A[148] * w[43]; acc -= A[149] * w[44]; acc -= A[150] * w[45]; acc -= A[151] * w[46]; w[41] = acc; }
+    { double acc = w[40]; acc -= A[137] * w[41]; acc -= A[138] * w[42]; acc -= A[139] * w[43]; acc -= A[140] * w[44]; acc -= A[141] * w[45]; acc -= A[142] * w[46]; w[40] = acc; }
+    { double acc = w[39]; acc -= A[127] * w[40]; acc -= A[128] * w[41]; acc -= A[129] * w[42]; acc -= A[130] * w[43]; acc -= A[131] * w[44]; acc -= A[132] * w[45]; acc -= A[133] * w[46]; w[39] = acc; }
+    { double acc = w[38]; acc -= A[117] * w[39]; acc -= A[118] * w[40]; acc -= A[119] * w[41]; acc -= A[120] * w[42]; acc -= A[121] * w[43]; acc -= A[122] * w[44]; acc -= A[123] * w[45]; acc -= A[124] * w[46]; w[38] = acc; }
+    { int p = 38 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { int p = 38 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
+    { int p = 38 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
+    { int p = 38 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
+    { int p = 38 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
+    { int p = 38 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
+    { int p = 38 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
+    { int p = 38 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
+    { int p = 38 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
+    w[15] -= off[109] * w[38];
+    w[16] -= off[110] * w[38];
+    w[21] -= off[111] * w[38];
+    w[15] -= off[112] * w[39];
+    w[16] -= off[113] * w[39];
+    w[21] -= off[114] * w[39];
+    w[15] -= off[115] * w[40];
+    w[16] -= off[116] * w[40];
+    w[21] -= off[117] * w[40];
+    w[32] -= off[118] * w[41];
+    w[33] -= off[119] * w[41];
+    w[34] -= off[120] * w[41];
+    w[32] -= off[121] * w[42];
+    w[33] -= off[122] * w[42];
+    w[34] -= off[123] * w[42];
+    w[29] -= off[124] * w[43];
+    w[30] -= off[125] * w[44];
+    w[31] -= off[126] * w[45];
+    w[32] -= off[127] * w[46];
+    w[33] -= off[128] * w[46];
+    w[34] -= off[129] * w[46];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[112]); }
+    { double acc = w[37]; acc -= A[114] * w[36]; w[37] = acc * (1.0 / A[115]); }
+    { double acc = w[36]; acc -= A[113] * w[37]; w[36] = acc; }
+    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
+    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    w[3] -= off[100] * w[36];
+    w[4] -= off[101] * w[36];
+    w[5] -= off[102] * w[36];
+    w[8] -= off[103] * w[37];
+    w[13] -= off[104] * w[37];
+    w[14] -= off[105] * w[37];
+    w[26] -= off[106] * w[37];
+    w[27] -= off[107] * w[37];
+    w[28] -= off[108] * w[37];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[111]); }
+    w[17] -= off[95] * w[35];
+    w[18] -= off[96] * w[35];
+    w[23] -= off[97] * w[35];
+    w[24] -= off[98] * w[35];
+    w[25] -= off[99] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[110]); }
+    w[9] -= off[91] * w[34];
+    w[15] -= off[92] * w[34];
+    w[16] -= off[93] * w[34];
+    w[21] -= off[94] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[109]); }
+    w[10] -= off[87] * w[33];
+    w[15] -= off[88] * w[33];
+    w[16] -= off[89] * w[33];
+    w[21] -= off[90] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[108]); }
+    w[6] -= off[84] * w[32];
+    w[16] -= off[85] * w[32];
+    w[21] -= off[86] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[107]); }
+    w[6] -= off[81] * w[31];
+    w[16] -= off[82] * w[31];
+    w[21] -= off[83] * w[31];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[30]; w[30] = acc * (1.0 / A[106]); }
+    w[10] -= off[77] * w[30];
+    w[15] -= off[78] * w[30];
+    w[16] -= off[79] * w[30];
+    w[21] -= off[80] * w[30];
+    { double acc = w[29]; w[29] = acc * (1.0 / A[105]); }
+    w[9] -= off[73] * w[29];
+    w[15] -= off[74] * w[29];
+    w[16] -= off[75] * w[29];
+    w[21] -= off[76] * w[29];
+    { double acc = w[28]; w[28] = acc * (1.0 / A[104]); }
+    w[9] -= off[69] * w[28];
+    w[15] -= off[70] * w[28];
+    w[16] -= off[71] * w[28];
+    w[21] -= off[72] * w[28];
+    { double acc = w[27]; w[27] = acc * (1.0 / A[103]); }
+    w[10] -= off[65] * w[27];
+    w[15] -= off[66] * w[27];
+    w[16] -= off[67] * w[27];
+    w[21] -= off[68] * w[27];
+    { double acc = w[26]; w[26] = acc * (1.0 / A[102]); }
+    w[6] -= off[62] * w[26];
+    w[16] -= off[63] * w[26];
+    w[21] -= off[64] * w[26];
+    { double acc = w[24]; w[24] = acc * (1.0 / A[98]); }
+    { double acc = w[25]; acc -= A[100] * w[24]; w[25] = acc * (1.0 / A[101]); }
+    { double acc = w[24]; acc -= A[99] * w[25]; w[24] = acc; }
+    { int p = 24 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 24 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    w[17] -= off[56] * w[24];
+    w[18] -= off[57] * w[24];
+    w[23] -= off[58] * w[24];
+    w[17] -= off[59] * w[25];
+    w[18] -= off[60] * w[25];
+    w[23] -= off[61] * w[25];
+    { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
+    { double acc = w[16]; acc -= A[26] * w[15]; w[16] = acc * (1.0 / A[27]); }
+    { double acc = w[17]; acc -= A[35] * w[15]; acc -= A[36] * w[16]; w[17] = acc * (1.0 / A[37]); }
+    { double acc = w[18]; acc -= A[44] * w[15]; acc -= A[45] * w[16]; acc -= A[46] * w[17]; w[18] = acc * (1.0 / A[47]); }
+    { double acc = w[19]; acc -= A[53] * w[15]; acc -= A[54] * w[16]; acc -= A[55] * w[17]; acc -= A[56] * w[18]; w[19] = acc * (1.0 / A[57]); }
+    { double acc = w[20]; acc -= A[62] * w[15]; acc -= A[63] * w[16]; acc -= A[64] * w[17]; acc -= A[65] * w[18]; acc -= A[66] * w[19]; w[20] = acc * (1.0 / A[67]); }
+    { double acc = w[21]; acc -= A[71] * w[15]; acc -= A[72] * w[16]; acc -= A[73] * w[17]; acc -= A[74] * w[18]; acc -= A[75] * w[19]; acc -= A[76] * w[20]; w[21] = acc * (1.0 / A[77]); }
+    { double acc = w[22]; acc -= A[80] * w[15]; acc -= A[81] * w[16]; acc -= A[82] * w[17]; acc -= A[83] * w[18]; acc -= A[84] * w[19]; acc -= A[85] * w[20]; acc -= A[86] * w[21]; w[22] = acc * (1.0 / A[87]); }
+    { double acc = w[23]; acc -= A[89] * w[15]; acc -= A[90] * w[16]; acc -= A[91] * w[17]; acc -= A[92] * w[18]; acc -= A[93] * w[19]; acc -= A[94] * w[20]; acc -= A[95] * w[21]; acc -= A[96] * w[22]; w[23] = acc * (1.0 / A[97]); }
+    { double acc = w[22]; acc -= A[88] * w[23]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[78] * w[22]; acc -= A[79] * w[23]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[68] * w[21]; acc -= A[69] * w[22]; acc -= A[70] * w[23]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[58] * w[20]; acc -= A[59] * w[21]; acc -= A[60] * w[22]; acc -= A[61] * w[23]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[48] * w[19]; acc -= A[49] * w[20]; acc -= A[50] * w[21]; acc -= A[51] * w[22]; acc -= A[52] * w[23]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[38] * w[18]; acc -= A[39] * w[19]; acc -= A[40] * w[20]; acc -= A[41] * w[21]; acc -= A[42] * w[22]; acc -= A[43] * w[23]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[28] * w[17]; acc -= A[29] * w[18]; acc -= A[30] * w[19]; acc -= A[31] * w[20]; acc -= A[32] * w[21]; acc -= A[33] * w[22]; acc -= A[34] * w[23]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; w[15] = acc; }
+    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    w[3] -= off[35] * w[15];
+    w[4] -= off[36] * w[15];
+    w[5] -= off[37] * w[15];
+    w[3] -= off[38] * w[16];
+    w[4] -= off[39] * w[16];
+    w[5] -= off[40] * w[16];
+    w[3] -= off[41] * w[17];
+    w[4] -= off[42] * w[17];
+    w[5] -= off[43] * w[17];
+    w[7] -= off[44] * w[18];
+    w[11] -= off[45] * w[18];
+    w[12] -= off[46] * w[18];
+    w[7] -= off[47] * w[19];
+    w[11] -= off[48] * w[19];
+    w[12] -= off[49] * w[19];
+    w[9] -= off[50] * w[20];
+    w[10] -= off[51] * w[21];
+    w[6] -= off[52] * w[22];
+    w[7] -= off[53] * w[23];
+    w[11] -= off[54] * w[23];
+    w[12] -= off[55] * w[23];
+    { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
+    w[1] -= off[31] * w[14];
+    w[3] -= off[32] * w[14];
+    w[4] -= off[33] * w[14];
+    w[5] -= off[34] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[15]); }
+    w[0] -= off[27] * w[13];
+    w[3] -= off[28] * w[13];
+    w[4] -= off[29] * w[13];
+    w[5] -= off[30] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[14]); }
+    w[0] -= off[23] * w[12];
+    w[3] -= off[24] * w[12];
+    w[4] -= off[25] * w[12];
+    w[5] -= off[26] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[13]); }
+    w[1] -= off[19] * w[11];
+    w[3] -= off[20] * w[11];
+    w[4] -= off[21] * w[11];
+    w[5] -= off[22] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[12]); }
+    w[1] -= off[15] * w[10];
+    w[3] -= off[16] * w[10];
+    w[4] -= off[17] * w[10];
+    w[5] -= off[18] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[11]); }
+    w[0] -= off[11] * w[9];
+    w[3] -= off[12] * w[9];
+    w[4] -= off[13] * w[9];
+    w[5] -= off[14] * w[9];
+}
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
+    w[2] -= off[8] * w[8];
+    w[3] -= off[9] * w[8];
+    w[4] -= off[10] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
+    w[2] -= off[5] * w[7];
+    w[3] -= off[6] * w[7];
+    w[4] -= off[7] * w[7];
+    { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
+    w[2] -= off[2] * w[6];
+    w[3] -= off[3] * w[6];
+    w[4] -= off[4] * w[6];
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    w[3] -= off[0] * w[5];
+    w[4] -= off[1] * w[5];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
+    solve_transposed_digging_0(A, off, piv, w);
+    solve_transposed_digging_1(A, off, piv, w);
+    solve_transposed_digging_2(A, off, piv, w);
+    solve_transposed_digging_3(A, off, piv, w);
+    solve_transposed_digging_4(A, off, piv, w);
+    for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
+}
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11949,7 +12388,7 @@ const kinegen_model excavator_euler_zxz_digging = {
     .row_order = row_order_digging, .col_order = col_order_digging,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 245, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -12400,6 +12839,440 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     solve_level_cut_4(A, off, piv, b, y);
     for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
 }
+
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_level_cut) */
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[83]; w[83] = acc * (1.0 / A[287]); }
+    w[78] -= off[261] * w[83];
+    w[79] -= off[262] * w[83];
+    w[80] -= off[263] * w[83];
+    w[81] -= off[264] * w[83];
+    w[82] -= off[265] * w[83];
+    { double acc = w[81]; w[81] = acc * (1.0 / A[283]); }
+    { double acc = w[82]; acc -= A[285] * w[81]; w[82] = acc * (1.0 / A[286]); }
+    { double acc = w[81]; acc -= A[284] * w[82]; w[81] = acc; }
+    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
+    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    w[78] -= off[255] * w[81];
+    w[79] -= off[256] * w[81];
+    w[80] -= off[257] * w[81];
+    w[78] -= off[258] * w[82];
+    w[79] -= off[259] * w[82];
+    w[80] -= off[260] * w[82];
+    { double acc = w[80]; w[80] = acc * (1.0 / A[282]); }
+    w[44] -= off[247] * w[80];
+    w[45] -= off[248] * w[80];
+    w[53] -= off[249] * w[80];
+    w[74] -= off[250] * w[80];
+    w[75] -= off[251] * w[80];
+    w[76] -= off[252] * w[80];
+    w[78] -= off[253] * w[80];
+    w[79] -= off[254] * w[80];
+    { double acc = w[78]; w[78] = acc * (1.0 / A[278]); }
+    { double acc = w[79]; acc -= A[280] * w[78]; w[79] = acc * (1.0 / A[281]); }
+    { double acc = w[78]; acc -= A[279] * w[79]; w[78] = acc; }
+    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    w[19] -= off[238] * w[78];
+    w[22] -= off[239] * w[78];
+    w[24] -= off[240] * w[78];
+    w[44] -= off[241] * w[79];
+    w[45] -= off[242] * w[79];
+    w[53] -= off[243] * w[79];
+    w[74] -= off[244] * w[79];
+    w[75] -= off[245] * w[79];
+    w[76] -= off[246] * w[79];
+    { double acc = w[77]; w[77] = acc * (1.0 / A[277]); }
+    w[56] -= off[233] * w[77];
+    w[57] -= off[234] * w[77];
+    w[63] -= off[235] * w[77];
+    w[72] -= off[236] * w[77];
+    w[73] -= off[237] * w[77];
+    { double acc = w[76]; w[76] = acc * (1.0 / A[276]); }
+    w[40] -= off[229] * w[76];
+    w[64] -= off[230] * w[76];
+    w[65] -= off[231] * w[76];
+    w[67] -= off[232] * w[76];
+    { double acc = w[75]; w[75] = acc * (1.0 / A[275]); }
+    w[52] -= off[225] * w[75];
+    w[64] -= off[226] * w[75];
+    w[65] -= off[227] * w[75];
+    w[67] -= off[228] * w[75];
+    { double acc = w[74]; w[74] = acc * (1.0 / A[274]); }
+    w[41] -= off[222] * w[74];
+    w[65] -= off[223] * w[74];
+    w[67] -= off[224] * w[74];
+    { double acc = w[72]; w[72] = acc * (1.0 / A[270]); }
+    { double acc = w[73]; acc -= A[272] * w[72]; w[73] = acc * (1.0 / A[273]); }
+    { double acc = w[72]; acc -= A[271] * w[73]; w[72] = acc; }
+    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
+    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    w[56] -= off[216] * w[72];
+    w[57] -= off[217] * w[72];
+    w[63] -= off[218] * w[72];
+    w[56] -= off[219] * w[73];
+    w[57] -= off[220] * w[73];
+    w[63] -= off[221] * w[73];
+    { double acc = w[71]; w[71] = acc * (1.0 / A[269]); }
+    w[48] -= off[211] * w[71];
+    w[49] -= off[212] * w[71];
+    w[55] -= off[213] * w[71];
+    w[61] -= off[214] * w[71];
+    w[62] -= off[215] * w[71];
+    { double acc = w[70]; w[70] = acc * (1.0 / A[268]); }
+    w[46] -= off[206] * w[70];
+    w[47] -= off[207] * w[70];
+    w[54] -= off[208] * w[70];
+    w[59] -= off[209] * w[70];
+    w[60] -= off[210] * w[70];
+    { double acc = w[64]; w[64] = acc * (1.0 / A[232]); }
+    { double acc = w[65]; acc -= A[238] * w[64]; w[65] = acc * (1.0 / A[239]); }
+    { double acc = w[66]; acc -= A[244] * w[64]; acc -= A[245] * w[65]; w[66] = acc * (1.0 / A[246]); }
+    { double acc = w[67]; acc -= A[250] * w[64]; acc -= A[251] * w[65]; acc -= A[252] * w[66]; w[67] = acc * (1.0 / A[253]); }
+    { double acc = w[68]; acc -= A[256] * w[64]; acc -= A[257] * w[65]; acc -= A[258] * w[66]; acc -= A[259] * w[67]; w[68] = acc * (1.0 / A[260]); }
+    { double acc = w[69]; acc -= A[262] * w[64]; acc -= A[263] * w[65]; acc -= A[264] * w[66]; acc -= A[265] * w[67]; acc -= A[266] * w[68]; w[69] = acc * (1.0 / A[267]); }
+    { double acc = w[68]; acc -= A[261] * w[69]; w[68] = acc; }
+    { double acc = w[67]; acc -= A[254] * w[68]; acc -= A[255] * w[69]; w[67] = acc; }
+    { double acc = w[66]; acc -= A[247] * w[67]; acc -= A[248] * w[68]; acc -= A[249] * w[69]; w[66] = acc; }
+    { double acc = w[65]; acc -= A[240] * w[66]; acc -= A[241] * w[67]; acc -= A[242] * w[68]; acc -= A[243] * w[69]; w[65] = acc; }
+    { double acc = w[64]; acc -= A[233] * w[65]; acc -= A[234] * w[66]; acc -= A[235] * w[67]; acc -= A[236] * w[68]; acc -= A[237] * w[69]; w[64] = acc; }
+    { int p = 64 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { int p = 64 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
+    { int p = 64 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
+    { int p = 64 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { int p = 64 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
+    { int p = 64 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    w[19] -= off[191] * w[64];
+    w[22] -= off[192] * w[64];
+    w[24] -= off[193] * w[64];
+    w[19] -= off[194] * w[65];
+    w[22] -= off[195] * w[65];
+    w[24] -= off[196] * w[65];
+    w[40] -= off[197] * w[66];
+    w[43] -= off[198] * w[66];
+    w[52] -= off[199] * w[67];
+    w[58] -= off[200] * w[67];
+    w[41] -= off[201] * w[68];
+    w[42] -= off[202] * w[68];
+    w[23] -= off[203] * w[69];
+    w[25] -= off[204] * w[69];
+    w[27] -= off[205] * w[69];
+    { double acc = w[63]; w[63] = acc * (1.0 / A[231]); }
+    w[35] -= off[183] * w[63];
+    w[36] -= off[184] * w[63];
+    w[37] -= off[185] * w[63];
+    w[38] -= off[186] * w[63];
+    w[39] -= off[187] * w[63];
+    w[50] -= off[188] * w[63];
+    w[56] -= off[189] * w[63];
+    w[57] -= off[190] * w[63];
+    { double acc = w[61]; w[61] = acc * (1.0 / A[227]); }
+    { double acc = w[62]; acc -= A[229] * w[61]; w[62] = acc * (1.0 / A[230]); }
+    { double acc = w[61]; acc -= A[228] * w[62]; w[61] = acc; }
+    { int p = 61 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { int p = 61 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
+    w[48] -= off[177] * w[61];
+    w[49] -= off[178] * w[61];
+    w[55] -= off[179] * w[61];
+    w[48] -= off[180] * w[62];
+    w[49] -= off[181] * w[62];
+    w[55] -= off[182] * w[62];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[59]; w[59] = acc * (1.0 / A[223]); }
+    { double acc = w[60]; acc -= A[225] * w[59]; w[60] = acc * (1.0 / A[226]); }
+    { double acc = w[59]; acc -= A[224] * w[60]; w[59] = acc; }
+    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
+    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    w[46] -= off[171] * w[59];
+    w[47] -= off[172] * w[59];
+    w[54] -= off[173] * w[59];
+    w[46] -= off[174] * w[60];
+    w[47] -= off[175] * w[60];
+    w[54] -= off[176] * w[60];
+    { double acc = w[58]; w[58] = acc * (1.0 / A[222]); }
+    w[23] -= off[167] * w[58];
+    w[25] -= off[168] * w[58];
+    w[27] -= off[169] * w[58];
+    w[51] -= off[170] * w[58];
+    { double acc = w[56]; w[56] = acc * (1.0 / A[218]); }
+    { double acc = w[57]; acc -= A[220] * w[56]; w[57] = acc * (1.0 / A[221]); }
+    { double acc = w[56]; acc -= A[219] * w[57]; w[56] = acc; }
+    { int p = 56 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
+    { int p = 56 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    w[15] -= off[158] * w[56];
+    w[16] -= off[159] * w[56];
+    w[20] -= off[160] * w[56];
+    w[35] -= off[161] * w[57];
+    w[36] -= off[162] * w[57];
+    w[37] -= off[163] * w[57];
+    w[38] -= off[164] * w[57];
+    w[39] -= off[165] * w[57];
+    w[50] -= off[166] * w[57];
+    { double acc = w[55]; w[55] = acc * (1.0 / A[217]); }
+    w[8] -= off[150] * w[55];
+    w[13] -= off[151] * w[55];
+    w[14] -= off[152] * w[55];
+    w[31] -= off[153] * w[55];
+    w[32] -= off[154] * w[55];
+    w[33] -= off[155] * w[55];
+    w[48] -= off[156] * w[55];
+    w[49] -= off[157] * w[55];
+    { double acc = w[54]; w[54] = acc * (1.0 / A[216]); }
+    w[7] -= off[142] * w[54];
+    w[11] -= off[143] * w[54];
+    w[12] -= off[144] * w[54];
+    w[28] -= off[145] * w[54];
+    w[29] -= off[146] * w[54];
+    w[30] -= off[147] * w[54];
+    w[46] -= off[148] * w[54];
+    w[47] -= off[149] * w[54];
+    { double acc = w[53]; w[53] = acc * (1.0 / A[215]); }
+    w[19] -= off[138] * w[53];
+    w[22] -= off[139] * w[53];
+    w[24] -= off[140] * w[53];
+    w[34] -= off[141] * w[53];
+    { double acc = w[52]; w[52] = acc * (1.0 / A[214]); }
+    w[19] -= off[134] * w[52];
+    w[22] -= off[135] * w[52];
+    w[24] -= off[136] * w[52];
+    w[34] -= off[137] * w[52];
+    { double acc = w[51]; w[51] = acc * (1.0 / A[213]); }
+    w[19] -= off[130] * w[51];
+    w[22] -= off[131] * w[51];
+    w[24] -= off[132] * w[51];
+    w[34] -= off[133] * w[51];
+    { double acc = w[50]; w[50] = acc * (1.0 / A[212]); }
+    w[19] -= off[126] * w[50];
+    w[22] -= off[127] * w[50];
+    w[24] -= off[128] * w[50];
+    w[34] -= off[129] * w[50];
+    { double acc = w[48]; w[48] = acc * (1.0 / A[208]); }
+    { double acc = w[49]; acc -= A[210] * w[48]; w[49] = acc * (1.0 / A[211]); }
+    { double acc = w[48]; acc -= A[209] * w[49]; w[48] = acc; }
+    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    w[3] -= off[117] * w[48];
+    w[4] -= off[118] * w[48];
+    w[5] -= off[119] * w[48];
+    w[8] -= off[120] * w[49];
+    w[13] -= off[121] * w[49];
+    w[14] -= off[122] * w[49];
+    w[31] -= off[123] * w[49];
+    w[32] -= off[124] * w[49];
+    w[33] -= off[125] * w[49];
+    { double acc = w[46]; w[46] = acc * (1.0 / A[204]); }
+    { double acc = w[47]; acc -= A[206] * w[46]; w[47] = acc * (1.0 / A[207]); }
+    { double acc = w[46]; acc -= A[205] * w[47]; w[46] = acc; }
+    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
+    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    w[3] -= off[108] * w[46];
+    w[4] -= off[109] * w[46];
+    w[5] -= off[110] * w[46];
+    w[7] -= off[111] * w[47];
+    w[11] -= off[112] * w[47];
+    w[12] -= off[113] * w[47];
+    w[28] -= off[114] * w[47];
+    w[29] -= off[115] * w[47];
+    w[30] -= off[116] * w[47];
+    { double acc = w[45]; w[45] = acc * (1.0 / A[203]); }
+    w[18] -= off[105] * w[45];
+    w[22] -= off[106] * w[45];
+    w[24] -= off[107] * w[45];
+    { double acc = w[44]; w[44] = acc * (1.0 / A[202]); }
+    w[17] -= off[101] * w[44];
+    w[19] -= off[102] * w[44];
+    w[22] -= off[103] * w[44];
+    w[24] -= off[104] * w[44];
+    { double acc = w[43]; w[43] = acc * (1.0 / A[201]); }
+    w[21] -= off[97] * w[43];
+    w[23] -= off[98] * w[43];
+    w[25] -= off[99] * w[43];
+    w[27] -= off[100] * w[43];
+    { double acc = w[42]; w[42] = acc * (1.0 / A[200]); }
+    w[25] -= off[94] * w[42];
+    w[26] -= off[95] * w[42];
+    w[27] -= off[96] * w[42];
+    { double acc = w[41]; w[41] = acc * (1.0 / A[199]); }
+    w[18] -= off[91] * w[41];
+    w[22] -= off[92] * w[41];
+    w[24] -= off[93] * w[41];
+    { double acc = w[40]; w[40] = acc * (1.0 / A[198]); }
+    w[17] -= off[87] * w[40];
+    w[19] -= off[88] * w[40];
+    w[22] -= off[89] * w[40];
+    w[24] -= off[90] * w[40];
+    { double acc = w[39]; w[39] = acc * (1.0 / A[197]); }
+    w[17] -= off[83] * w[39];
+    w[19] -= off[84] * w[39];
+    w[22] -= off[85] * w[39];
+    w[24] -= off[86] * w[39];
+    { double acc = w[38]; w[38] = acc * (1.0 / A[196]); }
+    w[18] -= off[80] * w[38];
+    w[22] -= off[81] * w[38];
+    w[24] -= off[82] * w[38];
+    { double acc = w[37]; w[37] = acc * (1.0 / A[195]); }
+    w[6] -= off[77] * w[37];
+    w[16] -= off[78] * w[37];
+    w[20] -= off[79] * w[37];
+    { double acc = w[36]; w[36] = acc * (1.0 / A[194]); }
+    w[10] -= off[73] * w[36];
+    w[15] -= off[74] * w[36];
+    w[16] -= off[75] * w[36];
+    w[20] -= off[76] * w[36];
+    { double acc = w[35]; w[35] = acc * (1.0 / A[193]); }
+    w[9] -= off[69] * w[35];
+    w[15] -= off[70] * w[35];
+    w[16] -= off[71] * w[35];
+    w[20] -= off[72] * w[35];
+    { double acc = w[34]; w[34] = acc * (1.0 / A[192]); }
+    w[10] -= off[65] * w[34];
+    w[15] -= off[66] * w[34];
+    w[16] -= off[67] * w[34];
+    w[20] -= off[68] * w[34];
+    { double acc = w[33]; w[33] = acc * (1.0 / A[191]); }
+    w[9] -= off[61] * w[33];
+    w[15] -= off[62] * w[33];
+    w[16] -= off[63] * w[33];
+    w[20] -= off[64] * w[33];
+    { double acc = w[32]; w[32] = acc * (1.0 / A[190]); }
+    w[10] -= off[57] * w[32];
+    w[15] -= off[58] * w[32];
+    w[16] -= off[59] * w[32];
+    w[20] -= off[60] * w[32];
+    { double acc = w[31]; w[31] = acc * (1.0 / A[189]); }
+    w[6] -= off[54] * w[31];
+    w[16] -= off[55] * w[31];
+    w[20] -= off[56] * w[31];
+    { double acc = w[30]; w[30] = acc * (1.0 / A[188]); }
+    w[9] -= off[50] * w[30];
+    w[15] -= off[51] * w[30];
+    w[16] -= off[52] * w[30];
+    w[20] -= off[53] * w[30];
+    { double acc = w[29]; w[29] = acc * (1.0 / A[187]); }
+    w[10] -= off[46] * w[29];
+    w[15] -= off[47] * w[29];
+    w[16] -= off[48] * w[29];
+    w[20] -= off[49] * w[29];
+    { double acc = w[28]; w[28] = acc * (1.0 / A[186]); }
+    w[6] -= off[43] * w[28];
+    w[16] -= off[44] * w[28];
+    w[20] -= off[45] * w[28];
+}
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
+    { double acc = w[16]; acc -= A[30] * w[15]; w[16] = acc * (1.0 / A[31]); }
+    { double acc = w[17]; acc -= A[43] * w[15]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
+    { double acc = w[18]; acc -= A[56] * w[15]; acc -= A[57] * w[16]; acc -= A[58] * w[17]; w[18] = acc * (1.0 / A[59]); }
+    { double acc = w[19]; acc -= A[69] * w[15]; acc -= A[70] * w[16]; acc -= A[71] * w[17]; acc -= A[72] * w[18]; w[19] = acc * (1.0 / A[73]); }
+    { double acc = w[20]; acc -= A[82] * w[15]; acc -= A[83] * w[16]; acc -= A[84] * w[17]; acc -= A[85] * w[18]; acc -= A[86] * w[19]; w[20] = acc * (1.0 / A[87]); }
+    { double acc = w[21]; acc -= A[95] * w[15]; acc -= A[96] * w[16]; acc -= A[97] * w[17]; acc -= A[98] * w[18]; acc -= A[99] * w[19]; acc -= A[100] * w[20]; w[21] = acc * (1.0 / A[101]); }
+    { double acc = w[22]; acc -= A[108] * w[15]; acc -= A[109] * w[16]; acc -= A[110] * w[17]; acc -= A[111] * w[18]; acc -= A[112] * w[19]; acc -= A[113] * w[20]; acc -= A[114] * w[21]; w[22] = acc * (1.0 / A[115]); }
+    { double acc = w[23]; acc -= A[121] * w[15]; acc -= A[122] * w[16]; acc -= A[123] * w[17]; acc -= A[124] * w[18]; acc -= A[125] * w[19]; acc -= A[126] * w[20]; acc -= A[127] * w[21]; acc -= A[128] * w[22]; w[23] = acc * (1.0 / A[129]); }
+    { double acc = w[24]; acc -= A[134] * w[15]; acc -= A[135] * w[16]; acc -= A[136] * w[17]; acc -= A[137] * w[18]; acc -= A[138] * w[19]; acc -= A[139] * w[20]; acc -= A[140] * w[21]; acc -= A[141] * w[22]; acc -= A[142] * w[23]; w[24] = acc * (1.0 / A[143]); }
+    { double acc = w[25]; acc -= A[147] * w[15]; acc -= A[148] * w[16]; acc -= A[149] * w[17]; acc -= A[150] * w[18]; acc -= A[151] * w[19]; acc -= A[152] * w[20]; acc -= A[153] * w[21]; acc -= A[154] * w[22]; acc -= A[155] * w[23]; acc -= A[156] * w[24]; w[25] = acc * (1.0 / A[157]); }
+    { double acc = w[26]; acc -= A[160] * w[15]; acc -= A[161] * w[16]; acc -= A[162] * w[17]; acc -= A[163] * w[18]; acc -= A[164] * w[19]; acc -= A[165] * w[20]; acc -= A[166] * w[21]; acc -= A[167] * w[22]; acc -= A[168] * w[23]; acc -= A[169] * w[24]; acc -= A[170] * w[25]; w[26] = acc * (1.0 / A[171]); }
+    { double acc = w[27]; acc -= A[173] * w[15]; acc -= A[174] * w[16]; acc -= A[175] * w[17]; acc -= A[176] * w[18]; acc -= A[177] * w[19]; acc -= A[178] * w[20]; acc -= A[179] * w[21]; acc -= A[180] * w[22]; acc -= A[181] * w[23]; acc -= A[182] * w[24]; acc -= A[183] * w[25]; acc -= A[184] * w[26]; w[27] = acc * (1.0 / A[185]); }
+    { double acc = w[26]; acc -= A[172] * w[27]; w[26] = acc; }
+    { double acc = w[25]; acc -= A[158] * w[26]; acc -= A[159] * w[27]; w[25] = acc; }
+    { double acc = w[24]; acc -= A[144] * w[25]; acc -= A[145] * w[26]; acc -= A[146] * w[27]; w[24] = acc; }
+    { double acc = w[23]; acc -= A[130] * w[24]; acc -= A[131] * w[25]; acc -= A[132] * w[26]; acc -= A[133] * w[27]; w[23] = acc; }
+    { double acc = w[22]; acc -= A[116] * w[23]; acc -= A[117] * w[24]; acc -= A[118] * w[25]; acc -= A[119] * w[26]; acc -= A[120] * w[27]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[102] * w[22]; acc -= A[103] * w[23]; acc -= A[104] * w[24]; acc -= A[105] * w[25]; acc -= A[106] * w[26]; acc -= A[107] * w[27]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[88] * w[21]; acc -= A[89] * w[22]; acc -= A[90] * w[23]; acc -= A[91] * w[24]; acc -= A[92] * w[25]; acc -= A[93] * w[26]; acc -= A[94] * w[27]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[74] * w[20]; acc -= A[75] * w[21]; acc -= A[76] * w[22]; acc -= A[77] * w[23]; acc -= A[78] * w[24]; acc -= A[79] * w[25]; acc -= A[80] * w[26]; acc -= A[81] * w[27]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[60] * w[19]; acc -= A[61] * w[20]; acc -= A[62] * w[21]; acc -= A[63] * w[22]; acc -= A[64] * w[23]; acc -= A[65] * w[24]; acc -= A[66] * w[25]; acc -= A[67] * w[26]; acc -= A[68] * w[27]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[32] * w[17]; acc -= A[33] * w[18]; acc -= A[34] * w[19]; acc -= A[35] * w[20]; acc -= A[36] * w[21]; acc -= A[37] * w[22]; acc -= A[38] * w[23]; acc -= A[39] * w[24]; acc -= A[40] * w[25]; acc -= A[41] * w[26]; acc -= A[42] * w[27]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; acc -= A[29] * w[27]; w[15] = acc; }
+    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
+    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
+    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
+    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    w[3] -= off[35] * w[15];
+    w[4] -= off[36] * w[15];
+    w[5] -= off[37] * w[15];
+    w[3] -= off[38] * w[16];
+    w[4] -= off[39] * w[16];
+    w[5] -= off[40] * w[16];
+    w[9] -= off[41] * w[17];
+    w[6] -= off[42] * w[18];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
+    w[1] -= off[31] * w[14];
+    w[3] -= off[32] * w[14];
+    w[4] -= off[33] * w[14];
+    w[5] -= off[34] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[15]); }
+    w[0] -= off[27] * w[13];
+    w[3] -= off[28] * w[13];
+    w[4] -= off[29] * w[13];
+    w[5] -= off[30] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[14]); }
+    w[1] -= off[23] * w[12];
+    w[3] -= off[24] * w[12];
+    w[4] -= off[25] * w[12];
+    w[5] -= off[26] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[13]); }
+    w[0] -= off[19] * w[11];
+    w[3] -= off[20] * w[11];
+    w[4] -= off[21] * w[11];
+    w[5] -= off[22] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[12]); }
+    w[1] -= off[15] * w[10];
+    w[3] -= off[16] * w[10];
+    w[4] -= off[17] * w[10];
+    w[5] -= off[18] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[11]); }
+    w[0] -= off[11] * w[9];
+    w[3] -= off[12] * w[9];
+    w[4] -= off[13] * w[9];
+    w[5] -= off[14] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
+    w[2] -= off[8] * w[8];
+    w[3] -= off[9] * w[8];
+    w[4] -= off[10] * w[8];
+    { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
+    w[2] -= off[5] * w[7];
+    w[3] -= off[6] * w[7];
+    w[4] -= off[7] * w[7];
+    { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
+    w[2] -= off[2] * w[6];
+    w[3] -= off[3] * w[6];
+    w[4] -= off[4] * w[6];
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    w[3] -= off[0] * w[5];
+    w[4] -= off[1] * w[5];
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
+    solve_transposed_level_cut_0(A, off, piv, w);
+    solve_transposed_level_cut_1(A, off, piv, w);
+    solve_transposed_level_cut_2(A, off, piv, w);
+    solve_transposed_level_cut_3(A, off, piv, w);
+    for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
+}
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12416,7 +13289,7 @@ const kinegen_model excavator_euler_zxz_level_cut = {
     .row_order = row_order_level_cut, .col_order = col_order_level_cut,
     .n_store = 288, .n_diag = 159, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 266, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -12452,7 +13325,7 @@ const kinegen_model excavator_euler_zxz_trench_wall = {
     .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
     .n_store = 288, .n_diag = 159, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 266, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
-    .solve = solve_level_cut,
+    .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -12488,7 +13361,7 @@ const kinegen_model excavator_euler_zxz_bucket_toggle = {
     .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 245, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -12524,7 +13397,7 @@ const kinegen_model excavator_euler_zxz_bucket_stroke = {
     .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 245, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -12560,7 +13433,7 @@ const kinegen_model excavator_euler_zxz_bucket_near_toggle = {
     .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 245, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -12596,7 +13469,7 @@ const kinegen_model excavator_euler_zxz_digging_fast = {
     .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 245, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -12632,7 +13505,7 @@ const kinegen_model excavator_euler_zxz_digging_paced = {
     .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 245, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -12668,7 +13541,7 @@ const kinegen_model excavator_euler_zxz_oscillation = {
     .row_order = row_order_oscillation, .col_order = col_order_oscillation,
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 245, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
-    .solve = solve_digging,
+    .solve = solve_digging, .solve_transposed = solve_transposed_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxz.h': 'f25ad9b46dac6d8e99908c4ca558036fbcd1000214709b3f6118d932b650d44c', 'excavator_euler_zxz.c': '2137e92a697ce2223e5bc467f053056dd207c56c43d62f6fb35530b0a1f7ae18'}
+C_FILES = {'excavator_euler_zxz.h': 'f25ad9b46dac6d8e99908c4ca558036fbcd1000214709b3f6118d932b650d44c', 'excavator_euler_zxz.c': '540e79e03c7de17137c4c752bdcd4a10488745c5ab0e2566650d58060d39c606'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

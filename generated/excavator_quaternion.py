@@ -93,7 +93,7 @@ KERNELS = {
     'frames_d': (('q', 'v', 'a', 'w', 'y', 'z'), ('frames_d',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_quaternion.h': '01ed06bf6e6ac588199715ef5c60181f77ef6785aaa35e43b2cc3462b45dd029', 'excavator_quaternion.c': 'eb1f4c692015df7b52b2e9d29df4a03803290f18320295229f617cb924157daf'}
+C_FILES = {'excavator_quaternion.h': '01ed06bf6e6ac588199715ef5c60181f77ef6785aaa35e43b2cc3462b45dd029', 'excavator_quaternion.c': 'fb4591e817140b454946b8568e412dae848b53d068912e3d2555d68ec107e3fa'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -909,6 +909,80 @@ static void solve_crank_turn(const double *A, const double *off, const int *piv,
     for (int j = 0; j < 21; ++j) x[col_order_crank_turn[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_crank_turn) */
+static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[13]; w[13] = acc * (1.0 / A[25]); }
+    { double acc = w[14]; acc -= A[33] * w[13]; w[14] = acc * (1.0 / A[34]); }
+    { double acc = w[15]; acc -= A[41] * w[13]; acc -= A[42] * w[14]; w[15] = acc * (1.0 / A[43]); }
+    { double acc = w[16]; acc -= A[49] * w[13]; acc -= A[50] * w[14]; acc -= A[51] * w[15]; w[16] = acc * (1.0 / A[52]); }
+    { double acc = w[17]; acc -= A[57] * w[13]; acc -= A[58] * w[14]; acc -= A[59] * w[15]; acc -= A[60] * w[16]; w[17] = acc * (1.0 / A[61]); }
+    { double acc = w[18]; acc -= A[65] * w[13]; acc -= A[66] * w[14]; acc -= A[67] * w[15]; acc -= A[68] * w[16]; acc -= A[69] * w[17]; w[18] = acc * (1.0 / A[70]); }
+    { double acc = w[19]; acc -= A[73] * w[13]; acc -= A[74] * w[14]; acc -= A[75] * w[15]; acc -= A[76] * w[16]; acc -= A[77] * w[17]; acc -= A[78] * w[18]; w[19] = acc * (1.0 / A[79]); }
+    { double acc = w[20]; acc -= A[81] * w[13]; acc -= A[82] * w[14]; acc -= A[83] * w[15]; acc -= A[84] * w[16]; acc -= A[85] * w[17]; acc -= A[86] * w[18]; acc -= A[87] * w[19]; w[20] = acc * (1.0 / A[88]); }
+    { double acc = w[19]; acc -= A[80] * w[20]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[71] * w[19]; acc -= A[72] * w[20]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[62] * w[18]; acc -= A[63] * w[19]; acc -= A[64] * w[20]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[53] * w[17]; acc -= A[54] * w[18]; acc -= A[55] * w[19]; acc -= A[56] * w[20]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[44] * w[16]; acc -= A[45] * w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[35] * w[15]; acc -= A[36] * w[16]; acc -= A[37] * w[17]; acc -= A[38] * w[18]; acc -= A[39] * w[19]; acc -= A[40] * w[20]; w[14] = acc; }
+    { double acc = w[13]; acc -= A[26] * w[14]; acc -= A[27] * w[15]; acc -= A[28] * w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; w[13] = acc; }
+    { int p = 13 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 13 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 13 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 13 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 13 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 13 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 13 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { int p = 13 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    w[9] -= off[13] * w[13];
+    w[10] -= off[14] * w[13];
+    w[8] -= off[15] * w[14];
+    w[11] -= off[16] * w[14];
+    w[7] -= off[17] * w[15];
+    w[12] -= off[18] * w[15];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[24]); }
+    w[2] -= off[8] * w[12];
+    w[3] -= off[9] * w[12];
+    w[4] -= off[10] * w[12];
+    w[5] -= off[11] * w[12];
+    w[6] -= off[12] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[23]); }
+    w[1] -= off[3] * w[11];
+    w[3] -= off[4] * w[11];
+    w[4] -= off[5] * w[11];
+    w[5] -= off[6] * w[11];
+    w[6] -= off[7] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
+    w[0] -= off[0] * w[10];
+    w[3] -= off[1] * w[10];
+    w[4] -= off[2] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[21]); }
+    { double acc = w[8]; w[8] = acc * (1.0 / A[20]); }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
+    { double acc = w[6]; acc -= A[15] * w[3]; acc -= A[16] * w[4]; acc -= A[17] * w[5]; w[6] = acc * (1.0 / A[18]); }
+    { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
+    { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
+    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_crank_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 21; ++j) w[j] = c[col_order_crank_turn[j]];
+    solve_transposed_crank_turn_0(A, off, piv, w);
+    for (int i = 0; i < 21; ++i) x[row_order_crank_turn[i]] = w[i];
+}
+
 const kinegen_model four_bar_euler_parameters_crank_turn = {
     .layout = &four_bar_euler_parameters_layout, .case_name = "crank_turn",
     .n_q = FOUR_BAR_EULER_PARAMETERS_N_Q, .n_v = FOUR_BAR_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 86,
@@ -920,7 +994,7 @@ const kinegen_model four_bar_euler_parameters_crank_turn = {
     .row_order = row_order_crank_turn, .col_order = col_order_crank_turn,
     .n_store = 89, .n_diag = 67, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,
     .n_off = 19, .off_start = off_start_crank_turn, .off_col = off_col_crank_turn, .off_value = off_value_crank_turn,
-    .solve = solve_crank_turn,
+    .solve = solve_crank_turn, .solve_transposed = solve_transposed_crank_turn,
     .work_doubles = FOUR_BAR_EULER_PARAMETERS_WORK_DOUBLES_CRANK_TURN, .work_ints = FOUR_BAR_EULER_PARAMETERS_WORK_INTS_CRANK_TURN,
     .n_kernels = 5, .kernels = kernels_crank_turn, .design = NULL,
 };

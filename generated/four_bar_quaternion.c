@@ -814,6 +814,72 @@ static void solve_crank_turn(const double *A, const double *off, const int *piv,
     for (int j = 0; j < 18; ++j) x[col_order_crank_turn[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_crank_turn) */
+static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[14]; w[14] = acc * (1.0 / A[18]); }
+    { double acc = w[15]; acc -= A[22] * w[14]; w[15] = acc * (1.0 / A[23]); }
+    { double acc = w[16]; acc -= A[26] * w[14]; acc -= A[27] * w[15]; w[16] = acc * (1.0 / A[28]); }
+    { double acc = w[17]; acc -= A[30] * w[14]; acc -= A[31] * w[15]; acc -= A[32] * w[16]; w[17] = acc * (1.0 / A[33]); }
+    { double acc = w[16]; acc -= A[29] * w[17]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[24] * w[16]; acc -= A[25] * w[17]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[19] * w[15]; acc -= A[20] * w[16]; acc -= A[21] * w[17]; w[14] = acc; }
+    { int p = 14 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 14 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 14 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 14 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    w[6] -= off[11] * w[14];
+    w[7] -= off[12] * w[14];
+    w[12] -= off[13] * w[14];
+    w[5] -= off[14] * w[15];
+    w[9] -= off[15] * w[15];
+    w[13] -= off[16] * w[15];
+    w[5] -= off[17] * w[16];
+    w[6] -= off[18] * w[16];
+    w[8] -= off[19] * w[16];
+    w[11] -= off[20] * w[16];
+    w[5] -= off[21] * w[17];
+    w[6] -= off[22] * w[17];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[17]); }
+    w[1] -= off[8] * w[13];
+    w[3] -= off[9] * w[13];
+    w[10] -= off[10] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[16]); }
+    w[0] -= off[5] * w[12];
+    w[4] -= off[6] * w[12];
+    w[10] -= off[7] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[15]); }
+    w[2] -= off[2] * w[11];
+    w[3] -= off[3] * w[11];
+    w[4] -= off[4] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[14]); }
+    w[3] -= off[0] * w[10];
+    w[4] -= off[1] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[13]); }
+    { double acc = w[8]; w[8] = acc * (1.0 / A[12]); }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[11]); }
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    { double acc = w[6]; acc -= A[9] * w[5]; w[6] = acc * (1.0 / A[10]); }
+    { double acc = w[5]; acc -= A[8] * w[6]; w[5] = acc; }
+    { int p = 5 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 5 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_crank_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 18; ++j) w[j] = c[col_order_crank_turn[j]];
+    solve_transposed_crank_turn_0(A, off, piv, w);
+    for (int i = 0; i < 18; ++i) x[row_order_crank_turn[i]] = w[i];
+}
+
 const kinegen_model four_bar_quaternion_crank_turn = {
     .layout = &four_bar_quaternion_layout, .case_name = "crank_turn",
     .n_q = FOUR_BAR_QUATERNION_N_Q, .n_v = FOUR_BAR_QUATERNION_N_V, .n_inputs = 1, .n_jac = 53,
@@ -825,7 +891,7 @@ const kinegen_model four_bar_quaternion_crank_turn = {
     .row_order = row_order_crank_turn, .col_order = col_order_crank_turn,
     .n_store = 34, .n_diag = 30, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,
     .n_off = 23, .off_start = off_start_crank_turn, .off_col = off_col_crank_turn, .off_value = off_value_crank_turn,
-    .solve = solve_crank_turn,
+    .solve = solve_crank_turn, .solve_transposed = solve_transposed_crank_turn,
     .work_doubles = FOUR_BAR_QUATERNION_WORK_DOUBLES_CRANK_TURN, .work_ints = FOUR_BAR_QUATERNION_WORK_INTS_CRANK_TURN,
     .n_kernels = 5, .kernels = kernels_crank_turn, .design = NULL,
 };

@@ -1128,6 +1128,87 @@ static void solve_turn(const double *A, const double *off, const int *piv, const
     for (int j = 0; j < 16; ++j) x[col_order_turn[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_turn) */
+static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
+    { double acc = w[9]; acc -= A[40] * w[8]; w[9] = acc * (1.0 / A[41]); }
+    { double acc = w[10]; acc -= A[48] * w[8]; acc -= A[49] * w[9]; w[10] = acc * (1.0 / A[50]); }
+    { double acc = w[11]; acc -= A[56] * w[8]; acc -= A[57] * w[9]; acc -= A[58] * w[10]; w[11] = acc * (1.0 / A[59]); }
+    { double acc = w[12]; acc -= A[64] * w[8]; acc -= A[65] * w[9]; acc -= A[66] * w[10]; acc -= A[67] * w[11]; w[12] = acc * (1.0 / A[68]); }
+    { double acc = w[13]; acc -= A[72] * w[8]; acc -= A[73] * w[9]; acc -= A[74] * w[10]; acc -= A[75] * w[11]; acc -= A[76] * w[12]; w[13] = acc * (1.0 / A[77]); }
+    { double acc = w[14]; acc -= A[80] * w[8]; acc -= A[81] * w[9]; acc -= A[82] * w[10]; acc -= A[83] * w[11]; acc -= A[84] * w[12]; acc -= A[85] * w[13]; w[14] = acc * (1.0 / A[86]); }
+    { double acc = w[15]; acc -= A[88] * w[8]; acc -= A[89] * w[9]; acc -= A[90] * w[10]; acc -= A[91] * w[11]; acc -= A[92] * w[12]; acc -= A[93] * w[13]; acc -= A[94] * w[14]; w[15] = acc * (1.0 / A[95]); }
+    { double acc = w[14]; acc -= A[87] * w[15]; w[14] = acc; }
+    { double acc = w[13]; acc -= A[78] * w[14]; acc -= A[79] * w[15]; w[13] = acc; }
+    { double acc = w[12]; acc -= A[69] * w[13]; acc -= A[70] * w[14]; acc -= A[71] * w[15]; w[12] = acc; }
+    { double acc = w[11]; acc -= A[60] * w[12]; acc -= A[61] * w[13]; acc -= A[62] * w[14]; acc -= A[63] * w[15]; w[11] = acc; }
+    { double acc = w[10]; acc -= A[51] * w[11]; acc -= A[52] * w[12]; acc -= A[53] * w[13]; acc -= A[54] * w[14]; acc -= A[55] * w[15]; w[10] = acc; }
+    { double acc = w[9]; acc -= A[42] * w[10]; acc -= A[43] * w[11]; acc -= A[44] * w[12]; acc -= A[45] * w[13]; acc -= A[46] * w[14]; acc -= A[47] * w[15]; w[9] = acc; }
+    { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; acc -= A[37] * w[13]; acc -= A[38] * w[14]; acc -= A[39] * w[15]; w[8] = acc; }
+    { int p = 8 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 8 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { int p = 8 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { int p = 8 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
+    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
+    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    w[0] -= off[16] * w[13];
+    w[1] -= off[17] * w[13];
+    w[2] -= off[18] * w[13];
+    w[3] -= off[19] * w[13];
+    w[4] -= off[20] * w[13];
+    w[5] -= off[21] * w[13];
+    w[6] -= off[22] * w[13];
+    w[7] -= off[23] * w[13];
+    { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
+    { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
+    { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
+    { double acc = w[7]; acc -= A[28] * w[4]; acc -= A[29] * w[5]; acc -= A[30] * w[6]; w[7] = acc * (1.0 / A[31]); }
+    { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
+    { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
+    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    w[0] -= off[0] * w[4];
+    w[1] -= off[1] * w[4];
+    w[2] -= off[2] * w[4];
+    w[3] -= off[3] * w[4];
+    w[0] -= off[4] * w[5];
+    w[1] -= off[5] * w[5];
+    w[2] -= off[6] * w[5];
+    w[3] -= off[7] * w[5];
+    w[0] -= off[8] * w[6];
+    w[1] -= off[9] * w[6];
+    w[2] -= off[10] * w[6];
+    w[3] -= off[11] * w[6];
+    w[0] -= off[12] * w[7];
+    w[1] -= off[13] * w[7];
+    w[2] -= off[14] * w[7];
+    w[3] -= off[15] * w[7];
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+    { double acc = w[1]; acc -= A[4] * w[0]; w[1] = acc * (1.0 / A[5]); }
+    { double acc = w[2]; acc -= A[8] * w[0]; acc -= A[9] * w[1]; w[2] = acc * (1.0 / A[10]); }
+    { double acc = w[3]; acc -= A[12] * w[0]; acc -= A[13] * w[1]; acc -= A[14] * w[2]; w[3] = acc * (1.0 / A[15]); }
+    { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
+    { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
+    { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
+    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
+    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
+    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 16; ++j) w[j] = c[col_order_turn[j]];
+    solve_transposed_turn_0(A, off, piv, w);
+    for (int i = 0; i < 16; ++i) x[row_order_turn[i]] = w[i];
+}
+
 const kinegen_model rssr_dual_euler_parameters_turn = {
     .layout = &rssr_dual_euler_parameters_layout, .case_name = "turn",
     .n_q = RSSR_DUAL_EULER_PARAMETERS_N_Q, .n_v = RSSR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 106,
@@ -1139,7 +1220,7 @@ const kinegen_model rssr_dual_euler_parameters_turn = {
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 96, .n_diag = 82, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 24, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
-    .solve = solve_turn,
+    .solve = solve_turn, .solve_transposed = solve_transposed_turn,
     .work_doubles = RSSR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_TURN, .work_ints = RSSR_DUAL_EULER_PARAMETERS_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

@@ -770,6 +770,56 @@ static void solve_turn(const double *A, const double *off, const int *piv, const
     for (int j = 0; j < 14; ++j) x[col_order_turn[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_turn) */
+static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
+    { double acc = w[11]; acc -= A[26] * w[10]; w[11] = acc * (1.0 / A[27]); }
+    { double acc = w[12]; acc -= A[30] * w[10]; acc -= A[31] * w[11]; w[12] = acc * (1.0 / A[32]); }
+    { double acc = w[13]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; w[13] = acc * (1.0 / A[37]); }
+    { double acc = w[12]; acc -= A[33] * w[13]; w[12] = acc; }
+    { double acc = w[11]; acc -= A[28] * w[12]; acc -= A[29] * w[13]; w[11] = acc; }
+    { double acc = w[10]; acc -= A[23] * w[11]; acc -= A[24] * w[12]; acc -= A[25] * w[13]; w[10] = acc; }
+    { int p = 10 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { int p = 10 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    { int p = 10 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
+    { int p = 10 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    w[0] -= off[0] * w[12];
+    w[1] -= off[1] * w[12];
+    w[2] -= off[2] * w[12];
+    w[3] -= off[3] * w[12];
+    w[4] -= off[4] * w[12];
+    w[5] -= off[5] * w[12];
+    w[6] -= off[6] * w[12];
+    w[7] -= off[7] * w[12];
+    w[8] -= off[8] * w[12];
+    w[9] -= off[9] * w[12];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[21]); }
+    { double acc = w[8]; w[8] = acc * (1.0 / A[20]); }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
+    { double acc = w[6]; acc -= A[15] * w[3]; acc -= A[16] * w[4]; acc -= A[17] * w[5]; w[6] = acc * (1.0 / A[18]); }
+    { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
+    { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
+    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 14; ++j) w[j] = c[col_order_turn[j]];
+    solve_transposed_turn_0(A, off, piv, w);
+    for (int i = 0; i < 14; ++i) x[row_order_turn[i]] = w[i];
+}
+
 const kinegen_model rssr_euler_parameters_turn = {
     .layout = &rssr_euler_parameters_layout, .case_name = "turn",
     .n_q = RSSR_EULER_PARAMETERS_N_Q, .n_v = RSSR_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 46,
@@ -781,7 +831,7 @@ const kinegen_model rssr_euler_parameters_turn = {
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 38, .n_diag = 36, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 10, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
-    .solve = solve_turn,
+    .solve = solve_turn, .solve_transposed = solve_transposed_turn,
     .work_doubles = RSSR_EULER_PARAMETERS_WORK_DOUBLES_TURN, .work_ints = RSSR_EULER_PARAMETERS_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

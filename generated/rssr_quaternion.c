@@ -676,6 +676,49 @@ static void solve_turn(const double *A, const double *off, const int *piv, const
     for (int j = 0; j < 12; ++j) x[col_order_turn[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_turn) */
+static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[11]; w[11] = acc * (1.0 / A[15]); }
+    w[0] -= off[2] * w[11];
+    w[1] -= off[3] * w[11];
+    w[2] -= off[4] * w[11];
+    w[3] -= off[5] * w[11];
+    w[4] -= off[6] * w[11];
+    w[5] -= off[7] * w[11];
+    w[6] -= off[8] * w[11];
+    w[7] -= off[9] * w[11];
+    w[8] -= off[10] * w[11];
+    w[9] -= off[11] * w[11];
+    w[10] -= off[12] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[14]); }
+    w[3] -= off[0] * w[10];
+    w[4] -= off[1] * w[10];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
+    { double acc = w[9]; acc -= A[12] * w[8]; w[9] = acc * (1.0 / A[13]); }
+    { double acc = w[8]; acc -= A[11] * w[9]; w[8] = acc; }
+    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
+    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
+    { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 12; ++j) w[j] = c[col_order_turn[j]];
+    solve_transposed_turn_0(A, off, piv, w);
+    for (int i = 0; i < 12; ++i) x[row_order_turn[i]] = w[i];
+}
+
 const kinegen_model rssr_quaternion_turn = {
     .layout = &rssr_quaternion_layout, .case_name = "turn",
     .n_q = RSSR_QUATERNION_N_Q, .n_v = RSSR_QUATERNION_N_V, .n_inputs = 1, .n_jac = 29,
@@ -687,7 +730,7 @@ const kinegen_model rssr_quaternion_turn = {
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 16, .n_diag = 16, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 13, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
-    .solve = solve_turn,
+    .solve = solve_turn, .solve_transposed = solve_transposed_turn,
     .work_doubles = RSSR_QUATERNION_WORK_DOUBLES_TURN, .work_ints = RSSR_QUATERNION_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_quaternion.h': 'c51813853e6613745c8d5bed2a741f7171edd95e34ab40af719e3f0bd8f4dbe5', 'rssr_quaternion.c': 'af4223cc6b488efb856c998759568156dc76c6c315ae8347566cc5e162c0267b'}
+C_FILES = {'rssr_quaternion.h': 'c51813853e6613745c8d5bed2a741f7171edd95e34ab40af719e3f0bd8f4dbe5', 'rssr_quaternion.c': '8dff5d4e81b70162f94f04f545b6a798639307f25130d75f84c801c5e754de05'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

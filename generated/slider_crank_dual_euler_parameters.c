@@ -1575,6 +1575,157 @@ static void solve_run(const double *A, const double *off, const int *piv, const 
     for (int j = 0; j < 24; ++j) x[col_order_run[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_run) */
+static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[12]; w[12] = acc * (1.0 / A[48]); }
+    { double acc = w[13]; acc -= A[60] * w[12]; w[13] = acc * (1.0 / A[61]); }
+    { double acc = w[14]; acc -= A[72] * w[12]; acc -= A[73] * w[13]; w[14] = acc * (1.0 / A[74]); }
+    { double acc = w[15]; acc -= A[84] * w[12]; acc -= A[85] * w[13]; acc -= A[86] * w[14]; w[15] = acc * (1.0 / A[87]); }
+    { double acc = w[16]; acc -= A[96] * w[12]; acc -= A[97] * w[13]; acc -= A[98] * w[14]; acc -= A[99] * w[15]; w[16] = acc * (1.0 / A[100]); }
+    { double acc = w[17]; acc -= A[108] * w[12]; acc -= A[109] * w[13]; acc -= A[110] * w[14]; acc -= A[111] * w[15]; acc -= A[112] * w[16]; w[17] = acc * (1.0 / A[113]); }
+    { double acc = w[18]; acc -= A[120] * w[12]; acc -= A[121] * w[13]; acc -= A[122] * w[14]; acc -= A[123] * w[15]; acc -= A[124] * w[16]; acc -= A[125] * w[17]; w[18] = acc * (1.0 / A[126]); }
+    { double acc = w[19]; acc -= A[132] * w[12]; acc -= A[133] * w[13]; acc -= A[134] * w[14]; acc -= A[135] * w[15]; acc -= A[136] * w[16]; acc -= A[137] * w[17]; acc -= A[138] * w[18]; w[19] = acc * (1.0 / A[139]); }
+    { double acc = w[20]; acc -= A[144] * w[12]; acc -= A[145] * w[13]; acc -= A[146] * w[14]; acc -= A[147] * w[15]; acc -= A[148] * w[16]; acc -= A[149] * w[17]; acc -= A[150] * w[18]; acc -= A[151] * w[19]; w[20] = acc * (1.0 / A[152]); }
+    { double acc = w[21]; acc -= A[156] * w[12]; acc -= A[157] * w[13]; acc -= A[158] * w[14]; acc -= A[159] * w[15]; acc -= A[160] * w[16]; acc -= A[161] * w[17]; acc -= A[162] * w[18]; acc -= A[163] * w[19]; acc -= A[164] * w[20]; w[21] = acc * (1.0 / A[165]); }
+    { double acc = w[22]; acc -= A[168] * w[12]; acc -= A[169] * w[13]; acc -= A[170] * w[14]; acc -= A[171] * w[15]; acc -= A[172] * w[16]; acc -= A[173] * w[17]; acc -= A[174] * w[18]; acc -= A[175] * w[19]; acc -= A[176] * w[20]; acc -= A[177] * w[21]; w[22] = acc * (1.0 / A[178]); }
+    { double acc = w[23]; acc -= A[180] * w[12]; acc -= A[181] * w[13]; acc -= A[182] * w[14]; acc -= A[183] * w[15]; acc -= A[184] * w[16]; acc -= A[185] * w[17]; acc -= A[186] * w[18]; acc -= A[187] * w[19]; acc -= A[188] * w[20]; acc -= A[189] * w[21]; acc -= A[190] * w[22]; w[23] = acc * (1.0 / A[191]); }
+    { double acc = w[22]; acc -= A[179] * w[23]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[166] * w[22]; acc -= A[167] * w[23]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[153] * w[21]; acc -= A[154] * w[22]; acc -= A[155] * w[23]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[140] * w[20]; acc -= A[141] * w[21]; acc -= A[142] * w[22]; acc -= A[143] * w[23]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[127] * w[19]; acc -= A[128] * w[20]; acc -= A[129] * w[21]; acc -= A[130] * w[22]; acc -= A[131] * w[23]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[114] * w[18]; acc -= A[115] * w[19]; acc -= A[116] * w[20]; acc -= A[117] * w[21]; acc -= A[118] * w[22]; acc -= A[119] * w[23]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[101] * w[17]; acc -= A[102] * w[18]; acc -= A[103] * w[19]; acc -= A[104] * w[20]; acc -= A[105] * w[21]; acc -= A[106] * w[22]; acc -= A[107] * w[23]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[88] * w[16]; acc -= A[89] * w[17]; acc -= A[90] * w[18]; acc -= A[91] * w[19]; acc -= A[92] * w[20]; acc -= A[93] * w[21]; acc -= A[94] * w[22]; acc -= A[95] * w[23]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[75] * w[15]; acc -= A[76] * w[16]; acc -= A[77] * w[17]; acc -= A[78] * w[18]; acc -= A[79] * w[19]; acc -= A[80] * w[20]; acc -= A[81] * w[21]; acc -= A[82] * w[22]; acc -= A[83] * w[23]; w[14] = acc; }
+    { double acc = w[13]; acc -= A[62] * w[14]; acc -= A[63] * w[15]; acc -= A[64] * w[16]; acc -= A[65] * w[17]; acc -= A[66] * w[18]; acc -= A[67] * w[19]; acc -= A[68] * w[20]; acc -= A[69] * w[21]; acc -= A[70] * w[22]; acc -= A[71] * w[23]; w[13] = acc; }
+    { double acc = w[12]; acc -= A[49] * w[13]; acc -= A[50] * w[14]; acc -= A[51] * w[15]; acc -= A[52] * w[16]; acc -= A[53] * w[17]; acc -= A[54] * w[18]; acc -= A[55] * w[19]; acc -= A[56] * w[20]; acc -= A[57] * w[21]; acc -= A[58] * w[22]; acc -= A[59] * w[23]; w[12] = acc; }
+    { int p = 12 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 12 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 12 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 12 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 12 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 12 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 12 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 12 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 12 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 12 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { int p = 12 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { int p = 12 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    w[0] -= off[16] * w[12];
+    w[1] -= off[17] * w[12];
+    w[2] -= off[18] * w[12];
+    w[3] -= off[19] * w[12];
+    w[8] -= off[20] * w[12];
+    w[9] -= off[21] * w[12];
+    w[10] -= off[22] * w[12];
+    w[11] -= off[23] * w[12];
+    w[0] -= off[24] * w[13];
+    w[1] -= off[25] * w[13];
+    w[2] -= off[26] * w[13];
+    w[3] -= off[27] * w[13];
+    w[8] -= off[28] * w[13];
+    w[9] -= off[29] * w[13];
+    w[10] -= off[30] * w[13];
+    w[11] -= off[31] * w[13];
+    w[0] -= off[32] * w[14];
+    w[1] -= off[33] * w[14];
+    w[2] -= off[34] * w[14];
+    w[3] -= off[35] * w[14];
+    w[8] -= off[36] * w[14];
+    w[9] -= off[37] * w[14];
+    w[10] -= off[38] * w[14];
+    w[11] -= off[39] * w[14];
+    w[4] -= off[40] * w[15];
+    w[5] -= off[41] * w[15];
+    w[6] -= off[42] * w[15];
+    w[7] -= off[43] * w[15];
+    w[4] -= off[44] * w[16];
+    w[5] -= off[45] * w[16];
+    w[6] -= off[46] * w[16];
+    w[7] -= off[47] * w[16];
+    w[4] -= off[48] * w[17];
+    w[5] -= off[49] * w[17];
+    w[6] -= off[50] * w[17];
+    w[7] -= off[51] * w[17];
+    w[4] -= off[52] * w[18];
+    w[5] -= off[53] * w[18];
+    w[6] -= off[54] * w[18];
+    w[7] -= off[55] * w[18];
+    w[4] -= off[56] * w[19];
+    w[5] -= off[57] * w[19];
+    w[6] -= off[58] * w[19];
+    w[7] -= off[59] * w[19];
+    w[4] -= off[60] * w[20];
+    w[5] -= off[61] * w[20];
+    w[6] -= off[62] * w[20];
+    w[7] -= off[63] * w[20];
+    w[4] -= off[64] * w[23];
+    w[5] -= off[65] * w[23];
+    w[6] -= off[66] * w[23];
+    w[7] -= off[67] * w[23];
+}
+static void solve_transposed_run_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
+    { double acc = w[9]; acc -= A[36] * w[8]; w[9] = acc * (1.0 / A[37]); }
+    { double acc = w[10]; acc -= A[40] * w[8]; acc -= A[41] * w[9]; w[10] = acc * (1.0 / A[42]); }
+    { double acc = w[11]; acc -= A[44] * w[8]; acc -= A[45] * w[9]; acc -= A[46] * w[10]; w[11] = acc * (1.0 / A[47]); }
+    { double acc = w[10]; acc -= A[43] * w[11]; w[10] = acc; }
+    { double acc = w[9]; acc -= A[38] * w[10]; acc -= A[39] * w[11]; w[9] = acc; }
+    { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; w[8] = acc; }
+    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
+    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
+    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    w[0] -= off[0] * w[8];
+    w[1] -= off[1] * w[8];
+    w[2] -= off[2] * w[8];
+    w[3] -= off[3] * w[8];
+    w[0] -= off[4] * w[9];
+    w[1] -= off[5] * w[9];
+    w[2] -= off[6] * w[9];
+    w[3] -= off[7] * w[9];
+    w[0] -= off[8] * w[10];
+    w[1] -= off[9] * w[10];
+    w[2] -= off[10] * w[10];
+    w[3] -= off[11] * w[10];
+    w[0] -= off[12] * w[11];
+    w[1] -= off[13] * w[11];
+    w[2] -= off[14] * w[11];
+    w[3] -= off[15] * w[11];
+    { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
+    { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
+    { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
+    { double acc = w[7]; acc -= A[28] * w[4]; acc -= A[29] * w[5]; acc -= A[30] * w[6]; w[7] = acc * (1.0 / A[31]); }
+    { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
+    { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
+    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+    { double acc = w[1]; acc -= A[4] * w[0]; w[1] = acc * (1.0 / A[5]); }
+    { double acc = w[2]; acc -= A[8] * w[0]; acc -= A[9] * w[1]; w[2] = acc * (1.0 / A[10]); }
+    { double acc = w[3]; acc -= A[12] * w[0]; acc -= A[13] * w[1]; acc -= A[14] * w[2]; w[3] = acc * (1.0 / A[15]); }
+    { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
+    { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
+    { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
+    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
+    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
+    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_run(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 24; ++j) w[j] = c[col_order_run[j]];
+    solve_transposed_run_0(A, off, piv, w);
+    solve_transposed_run_1(A, off, piv, w);
+    for (int i = 0; i < 24; ++i) x[row_order_run[i]] = w[i];
+}
+
 const kinegen_model slider_crank_dual_euler_parameters_run = {
     .layout = &slider_crank_dual_euler_parameters_layout, .case_name = "run",
     .n_q = SLIDER_CRANK_DUAL_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 202,
@@ -1586,7 +1737,7 @@ const kinegen_model slider_crank_dual_euler_parameters_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 192, .n_diag = 134, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 68, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
-    .solve = solve_run,
+    .solve = solve_run, .solve_transposed = solve_transposed_run,
     .work_doubles = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -1956,6 +2107,134 @@ static void solve_dead_centre(const double *A, const double *off, const int *piv
     for (int j = 0; j < 24; ++j) x[col_order_dead_centre[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_dead_centre) */
+static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
+    { double acc = w[9]; acc -= A[48] * w[8]; w[9] = acc * (1.0 / A[49]); }
+    { double acc = w[10]; acc -= A[64] * w[8]; acc -= A[65] * w[9]; w[10] = acc * (1.0 / A[66]); }
+    { double acc = w[11]; acc -= A[80] * w[8]; acc -= A[81] * w[9]; acc -= A[82] * w[10]; w[11] = acc * (1.0 / A[83]); }
+    { double acc = w[12]; acc -= A[96] * w[8]; acc -= A[97] * w[9]; acc -= A[98] * w[10]; acc -= A[99] * w[11]; w[12] = acc * (1.0 / A[100]); }
+    { double acc = w[13]; acc -= A[112] * w[8]; acc -= A[113] * w[9]; acc -= A[114] * w[10]; acc -= A[115] * w[11]; acc -= A[116] * w[12]; w[13] = acc * (1.0 / A[117]); }
+    { double acc = w[14]; acc -= A[128] * w[8]; acc -= A[129] * w[9]; acc -= A[130] * w[10]; acc -= A[131] * w[11]; acc -= A[132] * w[12]; acc -= A[133] * w[13]; w[14] = acc * (1.0 / A[134]); }
+    { double acc = w[15]; acc -= A[144] * w[8]; acc -= A[145] * w[9]; acc -= A[146] * w[10]; acc -= A[147] * w[11]; acc -= A[148] * w[12]; acc -= A[149] * w[13]; acc -= A[150] * w[14]; w[15] = acc * (1.0 / A[151]); }
+    { double acc = w[16]; acc -= A[160] * w[8]; acc -= A[161] * w[9]; acc -= A[162] * w[10]; acc -= A[163] * w[11]; acc -= A[164] * w[12]; acc -= A[165] * w[13]; acc -= A[166] * w[14]; acc -= A[167] * w[15]; w[16] = acc * (1.0 / A[168]); }
+    { double acc = w[17]; acc -= A[176] * w[8]; acc -= A[177] * w[9]; acc -= A[178] * w[10]; acc -= A[179] * w[11]; acc -= A[180] * w[12]; acc -= A[181] * w[13]; acc -= A[182] * w[14]; acc -= A[183] * w[15]; acc -= A[184] * w[16]; w[17] = acc * (1.0 / A[185]); }
+    { double acc = w[18]; acc -= A[192] * w[8]; acc -= A[193] * w[9]; acc -= A[194] * w[10]; acc -= A[195] * w[11]; acc -= A[196] * w[12]; acc -= A[197] * w[13]; acc -= A[198] * w[14]; acc -= A[199] * w[15]; acc -= A[200] * w[16]; acc -= A[201] * w[17]; w[18] = acc * (1.0 / A[202]); }
+    { double acc = w[19]; acc -= A[208] * w[8]; acc -= A[209] * w[9]; acc -= A[210] * w[10]; acc -= A[211] * w[11]; acc -= A[212] * w[12]; acc -= A[213] * w[13]; acc -= A[214] * w[14]; acc -= A[215] * w[15]; acc -= A[216] * w[16]; acc -= A[217] * w[17]; acc -= A[218] * w[18]; w[19] = acc * (1.0 / A[219]); }
+    { double acc = w[20]; acc -= A[224] * w[8]; acc -= A[225] * w[9]; acc -= A[226] * w[10]; acc -= A[227] * w[11]; acc -= A[228] * w[12]; acc -= A[229] * w[13]; acc -= A[230] * w[14]; acc -= A[231] * w[15]; acc -= A[232] * w[16]; acc -= A[233] * w[17]; acc -= A[234] * w[18]; acc -= A[235] * w[19]; w[20] = acc * (1.0 / A[236]); }
+    { double acc = w[21]; acc -= A[240] * w[8]; acc -= A[241] * w[9]; acc -= A[242] * w[10]; acc -= A[243] * w[11]; acc -= A[244] * w[12]; acc -= A[245] * w[13]; acc -= A[246] * w[14]; acc -= A[247] * w[15]; acc -= A[248] * w[16]; acc -= A[249] * w[17]; acc -= A[250] * w[18]; acc -= A[251] * w[19]; acc -= A[252] * w[20]; w[21] = acc * (1.0 / A[253]); }
+    { double acc = w[22]; acc -= A[256] * w[8]; acc -= A[257] * w[9]; acc -= A[258] * w[10]; acc -= A[259] * w[11]; acc -= A[260] * w[12]; acc -= A[261] * w[13]; acc -= A[262] * w[14]; acc -= A[263] * w[15]; acc -= A[264] * w[16]; acc -= A[265] * w[17]; acc -= A[266] * w[18]; acc -= A[267] * w[19]; acc -= A[268] * w[20]; acc -= A[269] * w[21]; w[22] = acc * (1.0 / A[270]); }
+    { double acc = w[23]; acc -= A[272] * w[8]; acc -= A[273] * w[9]; acc -= A[274] * w[10]; acc -= A[275] * w[11]; acc -= A[276] * w[12]; acc -= A[277] * w[13]; acc -= A[278] * w[14]; acc -= A[279] * w[15]; acc -= A[280] * w[16]; acc -= A[281] * w[17]; acc -= A[282] * w[18]; acc -= A[283] * w[19]; acc -= A[284] * w[20]; acc -= A[285] * w[21]; acc -= A[286] * w[22]; w[23] = acc * (1.0 / A[287]); }
+    { double acc = w[22]; acc -= A[271] * w[23]; w[22] = acc; }
+    { double acc = w[21]; acc -= A[254] * w[22]; acc -= A[255] * w[23]; w[21] = acc; }
+    { double acc = w[20]; acc -= A[237] * w[21]; acc -= A[238] * w[22]; acc -= A[239] * w[23]; w[20] = acc; }
+    { double acc = w[19]; acc -= A[220] * w[20]; acc -= A[221] * w[21]; acc -= A[222] * w[22]; acc -= A[223] * w[23]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[203] * w[19]; acc -= A[204] * w[20]; acc -= A[205] * w[21]; acc -= A[206] * w[22]; acc -= A[207] * w[23]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[186] * w[18]; acc -= A[187] * w[19]; acc -= A[188] * w[20]; acc -= A[189] * w[21]; acc -= A[190] * w[22]; acc -= A[191] * w[23]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[169] * w[17]; acc -= A[170] * w[18]; acc -= A[171] * w[19]; acc -= A[172] * w[20]; acc -= A[173] * w[21]; acc -= A[174] * w[22]; acc -= A[175] * w[23]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[152] * w[16]; acc -= A[153] * w[17]; acc -= A[154] * w[18]; acc -= A[155] * w[19]; acc -= A[156] * w[20]; acc -= A[157] * w[21]; acc -= A[158] * w[22]; acc -= A[159] * w[23]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[135] * w[15]; acc -= A[136] * w[16]; acc -= A[137] * w[17]; acc -= A[138] * w[18]; acc -= A[139] * w[19]; acc -= A[140] * w[20]; acc -= A[141] * w[21]; acc -= A[142] * w[22]; acc -= A[143] * w[23]; w[14] = acc; }
+    { double acc = w[13]; acc -= A[118] * w[14]; acc -= A[119] * w[15]; acc -= A[120] * w[16]; acc -= A[121] * w[17]; acc -= A[122] * w[18]; acc -= A[123] * w[19]; acc -= A[124] * w[20]; acc -= A[125] * w[21]; acc -= A[126] * w[22]; acc -= A[127] * w[23]; w[13] = acc; }
+    { double acc = w[12]; acc -= A[101] * w[13]; acc -= A[102] * w[14]; acc -= A[103] * w[15]; acc -= A[104] * w[16]; acc -= A[105] * w[17]; acc -= A[106] * w[18]; acc -= A[107] * w[19]; acc -= A[108] * w[20]; acc -= A[109] * w[21]; acc -= A[110] * w[22]; acc -= A[111] * w[23]; w[12] = acc; }
+    { double acc = w[11]; acc -= A[84] * w[12]; acc -= A[85] * w[13]; acc -= A[86] * w[14]; acc -= A[87] * w[15]; acc -= A[88] * w[16]; acc -= A[89] * w[17]; acc -= A[90] * w[18]; acc -= A[91] * w[19]; acc -= A[92] * w[20]; acc -= A[93] * w[21]; acc -= A[94] * w[22]; acc -= A[95] * w[23]; w[11] = acc; }
+    { double acc = w[10]; acc -= A[67] * w[11]; acc -= A[68] * w[12]; acc -= A[69] * w[13]; acc -= A[70] * w[14]; acc -= A[71] * w[15]; acc -= A[72] * w[16]; acc -= A[73] * w[17]; acc -= A[74] * w[18]; acc -= A[75] * w[19]; acc -= A[76] * w[20]; acc -= A[77] * w[21]; acc -= A[78] * w[22]; acc -= A[79] * w[23]; w[10] = acc; }
+    { double acc = w[9]; acc -= A[50] * w[10]; acc -= A[51] * w[11]; acc -= A[52] * w[12]; acc -= A[53] * w[13]; acc -= A[54] * w[14]; acc -= A[55] * w[15]; acc -= A[56] * w[16]; acc -= A[57] * w[17]; acc -= A[58] * w[18]; acc -= A[59] * w[19]; acc -= A[60] * w[20]; acc -= A[61] * w[21]; acc -= A[62] * w[22]; acc -= A[63] * w[23]; w[9] = acc; }
+    { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; acc -= A[37] * w[13]; acc -= A[38] * w[14]; acc -= A[39] * w[15]; acc -= A[40] * w[16]; acc -= A[41] * w[17]; acc -= A[42] * w[18]; acc -= A[43] * w[19]; acc -= A[44] * w[20]; acc -= A[45] * w[21]; acc -= A[46] * w[22]; acc -= A[47] * w[23]; w[8] = acc; }
+    { int p = 8 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
+    { int p = 8 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
+    { int p = 8 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
+    { int p = 8 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 8 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 8 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 8 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 8 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 8 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 8 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { int p = 8 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { int p = 8 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
+    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
+    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    w[0] -= off[16] * w[16];
+    w[1] -= off[17] * w[16];
+    w[2] -= off[18] * w[16];
+    w[3] -= off[19] * w[16];
+    w[4] -= off[20] * w[16];
+    w[5] -= off[21] * w[16];
+    w[6] -= off[22] * w[16];
+    w[7] -= off[23] * w[16];
+    w[0] -= off[24] * w[17];
+    w[1] -= off[25] * w[17];
+    w[2] -= off[26] * w[17];
+    w[3] -= off[27] * w[17];
+    w[4] -= off[28] * w[17];
+    w[5] -= off[29] * w[17];
+    w[6] -= off[30] * w[17];
+    w[7] -= off[31] * w[17];
+    w[0] -= off[32] * w[18];
+    w[1] -= off[33] * w[18];
+    w[2] -= off[34] * w[18];
+    w[3] -= off[35] * w[18];
+    w[4] -= off[36] * w[18];
+    w[5] -= off[37] * w[18];
+    w[6] -= off[38] * w[18];
+    w[7] -= off[39] * w[18];
+    w[0] -= off[40] * w[19];
+    w[1] -= off[41] * w[19];
+    w[2] -= off[42] * w[19];
+    w[3] -= off[43] * w[19];
+}
+static void solve_transposed_dead_centre_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
+    { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
+    { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
+    { double acc = w[7]; acc -= A[28] * w[4]; acc -= A[29] * w[5]; acc -= A[30] * w[6]; w[7] = acc * (1.0 / A[31]); }
+    { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
+    { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
+    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    w[0] -= off[0] * w[4];
+    w[1] -= off[1] * w[4];
+    w[2] -= off[2] * w[4];
+    w[3] -= off[3] * w[4];
+    w[0] -= off[4] * w[5];
+    w[1] -= off[5] * w[5];
+    w[2] -= off[6] * w[5];
+    w[3] -= off[7] * w[5];
+    w[0] -= off[8] * w[6];
+    w[1] -= off[9] * w[6];
+    w[2] -= off[10] * w[6];
+    w[3] -= off[11] * w[6];
+    w[0] -= off[12] * w[7];
+    w[1] -= off[13] * w[7];
+    w[2] -= off[14] * w[7];
+    w[3] -= off[15] * w[7];
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+    { double acc = w[1]; acc -= A[4] * w[0]; w[1] = acc * (1.0 / A[5]); }
+    { double acc = w[2]; acc -= A[8] * w[0]; acc -= A[9] * w[1]; w[2] = acc * (1.0 / A[10]); }
+    { double acc = w[3]; acc -= A[12] * w[0]; acc -= A[13] * w[1]; acc -= A[14] * w[2]; w[3] = acc * (1.0 / A[15]); }
+    { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
+    { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
+    { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
+    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
+    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
+    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_dead_centre(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 24; ++j) w[j] = c[col_order_dead_centre[j]];
+    solve_transposed_dead_centre_0(A, off, piv, w);
+    solve_transposed_dead_centre_1(A, off, piv, w);
+    for (int i = 0; i < 24; ++i) x[row_order_dead_centre[i]] = w[i];
+}
+
 const kinegen_model slider_crank_dual_euler_parameters_dead_centre = {
     .layout = &slider_crank_dual_euler_parameters_layout, .case_name = "dead_centre",
     .n_q = SLIDER_CRANK_DUAL_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 208,
@@ -1967,7 +2246,7 @@ const kinegen_model slider_crank_dual_euler_parameters_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 288, .n_diag = 164, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 44, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
-    .solve = solve_dead_centre,
+    .solve = solve_dead_centre, .solve_transposed = solve_transposed_dead_centre,
     .work_doubles = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_DUAL_EULER_PARAMETERS_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

@@ -977,6 +977,84 @@ static void solve_run(const double *A, const double *off, const int *piv, const 
     for (int j = 0; j < 21; ++j) x[col_order_run[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_run) */
+static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[20]; w[20] = acc * (1.0 / A[56]); }
+    w[13] -= off[21] * w[20];
+    w[16] -= off[22] * w[20];
+    w[18] -= off[23] * w[20];
+    { double acc = w[16]; w[16] = acc * (1.0 / A[40]); }
+    { double acc = w[17]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
+    { double acc = w[18]; acc -= A[48] * w[16]; acc -= A[49] * w[17]; w[18] = acc * (1.0 / A[50]); }
+    { double acc = w[19]; acc -= A[52] * w[16]; acc -= A[53] * w[17]; acc -= A[54] * w[18]; w[19] = acc * (1.0 / A[55]); }
+    { double acc = w[18]; acc -= A[51] * w[19]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[41] * w[17]; acc -= A[42] * w[18]; acc -= A[43] * w[19]; w[16] = acc; }
+    { int p = 16 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 16 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 16 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 16 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    w[12] -= off[13] * w[16];
+    w[14] -= off[14] * w[16];
+    w[11] -= off[15] * w[17];
+    w[15] -= off[16] * w[17];
+    w[7] -= off[17] * w[18];
+    w[8] -= off[18] * w[18];
+    w[9] -= off[19] * w[18];
+    w[10] -= off[20] * w[18];
+    { double acc = w[15]; w[15] = acc * (1.0 / A[39]); }
+    w[2] -= off[8] * w[15];
+    w[3] -= off[9] * w[15];
+    w[4] -= off[10] * w[15];
+    w[5] -= off[11] * w[15];
+    w[6] -= off[12] * w[15];
+    { double acc = w[14]; w[14] = acc * (1.0 / A[38]); }
+    w[1] -= off[3] * w[14];
+    w[3] -= off[4] * w[14];
+    w[4] -= off[5] * w[14];
+    w[5] -= off[6] * w[14];
+    w[6] -= off[7] * w[14];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[37]); }
+    w[0] -= off[0] * w[13];
+    w[3] -= off[1] * w[13];
+    w[4] -= off[2] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[36]); }
+    { double acc = w[11]; w[11] = acc * (1.0 / A[35]); }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
+    { double acc = w[8]; acc -= A[23] * w[7]; w[8] = acc * (1.0 / A[24]); }
+    { double acc = w[9]; acc -= A[27] * w[7]; acc -= A[28] * w[8]; w[9] = acc * (1.0 / A[29]); }
+    { double acc = w[10]; acc -= A[31] * w[7]; acc -= A[32] * w[8]; acc -= A[33] * w[9]; w[10] = acc * (1.0 / A[34]); }
+    { double acc = w[9]; acc -= A[30] * w[10]; w[9] = acc; }
+    { double acc = w[8]; acc -= A[25] * w[9]; acc -= A[26] * w[10]; w[8] = acc; }
+    { double acc = w[7]; acc -= A[20] * w[8]; acc -= A[21] * w[9]; acc -= A[22] * w[10]; w[7] = acc; }
+    { int p = 7 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    { int p = 7 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
+    { int p = 7 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { int p = 7 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
+    { double acc = w[6]; acc -= A[15] * w[3]; acc -= A[16] * w[4]; acc -= A[17] * w[5]; w[6] = acc * (1.0 / A[18]); }
+    { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
+    { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
+    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_run(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 21; ++j) w[j] = c[col_order_run[j]];
+    solve_transposed_run_0(A, off, piv, w);
+    for (int i = 0; i < 21; ++i) x[row_order_run[i]] = w[i];
+}
+
 const kinegen_model slider_crank_euler_parameters_run = {
     .layout = &slider_crank_euler_parameters_layout, .case_name = "run",
     .n_q = SLIDER_CRANK_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 79,
@@ -988,7 +1066,7 @@ const kinegen_model slider_crank_euler_parameters_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 57, .n_diag = 55, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 24, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
-    .solve = solve_run,
+    .solve = solve_run, .solve_transposed = solve_transposed_run,
     .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -1198,6 +1276,81 @@ static void solve_dead_centre(const double *A, const double *off, const int *piv
     for (int j = 0; j < 21; ++j) x[col_order_dead_centre[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_dead_centre) */
+static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
+    { double acc = w[11]; acc -= A[33] * w[10]; w[11] = acc * (1.0 / A[34]); }
+    { double acc = w[12]; acc -= A[44] * w[10]; acc -= A[45] * w[11]; w[12] = acc * (1.0 / A[46]); }
+    { double acc = w[13]; acc -= A[55] * w[10]; acc -= A[56] * w[11]; acc -= A[57] * w[12]; w[13] = acc * (1.0 / A[58]); }
+    { double acc = w[14]; acc -= A[66] * w[10]; acc -= A[67] * w[11]; acc -= A[68] * w[12]; acc -= A[69] * w[13]; w[14] = acc * (1.0 / A[70]); }
+    { double acc = w[15]; acc -= A[77] * w[10]; acc -= A[78] * w[11]; acc -= A[79] * w[12]; acc -= A[80] * w[13]; acc -= A[81] * w[14]; w[15] = acc * (1.0 / A[82]); }
+    { double acc = w[16]; acc -= A[88] * w[10]; acc -= A[89] * w[11]; acc -= A[90] * w[12]; acc -= A[91] * w[13]; acc -= A[92] * w[14]; acc -= A[93] * w[15]; w[16] = acc * (1.0 / A[94]); }
+    { double acc = w[17]; acc -= A[99] * w[10]; acc -= A[100] * w[11]; acc -= A[101] * w[12]; acc -= A[102] * w[13]; acc -= A[103] * w[14]; acc -= A[104] * w[15]; acc -= A[105] * w[16]; w[17] = acc * (1.0 / A[106]); }
+    { double acc = w[18]; acc -= A[110] * w[10]; acc -= A[111] * w[11]; acc -= A[112] * w[12]; acc -= A[113] * w[13]; acc -= A[114] * w[14]; acc -= A[115] * w[15]; acc -= A[116] * w[16]; acc -= A[117] * w[17]; w[18] = acc * (1.0 / A[118]); }
+    { double acc = w[19]; acc -= A[121] * w[10]; acc -= A[122] * w[11]; acc -= A[123] * w[12]; acc -= A[124] * w[13]; acc -= A[125] * w[14]; acc -= A[126] * w[15]; acc -= A[127] * w[16]; acc -= A[128] * w[17]; acc -= A[129] * w[18]; w[19] = acc * (1.0 / A[130]); }
+    { double acc = w[20]; acc -= A[132] * w[10]; acc -= A[133] * w[11]; acc -= A[134] * w[12]; acc -= A[135] * w[13]; acc -= A[136] * w[14]; acc -= A[137] * w[15]; acc -= A[138] * w[16]; acc -= A[139] * w[17]; acc -= A[140] * w[18]; acc -= A[141] * w[19]; w[20] = acc * (1.0 / A[142]); }
+    { double acc = w[19]; acc -= A[131] * w[20]; w[19] = acc; }
+    { double acc = w[18]; acc -= A[119] * w[19]; acc -= A[120] * w[20]; w[18] = acc; }
+    { double acc = w[17]; acc -= A[107] * w[18]; acc -= A[108] * w[19]; acc -= A[109] * w[20]; w[17] = acc; }
+    { double acc = w[16]; acc -= A[95] * w[17]; acc -= A[96] * w[18]; acc -= A[97] * w[19]; acc -= A[98] * w[20]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[83] * w[16]; acc -= A[84] * w[17]; acc -= A[85] * w[18]; acc -= A[86] * w[19]; acc -= A[87] * w[20]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[71] * w[15]; acc -= A[72] * w[16]; acc -= A[73] * w[17]; acc -= A[74] * w[18]; acc -= A[75] * w[19]; acc -= A[76] * w[20]; w[14] = acc; }
+    { double acc = w[13]; acc -= A[59] * w[14]; acc -= A[60] * w[15]; acc -= A[61] * w[16]; acc -= A[62] * w[17]; acc -= A[63] * w[18]; acc -= A[64] * w[19]; acc -= A[65] * w[20]; w[13] = acc; }
+    { double acc = w[12]; acc -= A[47] * w[13]; acc -= A[48] * w[14]; acc -= A[49] * w[15]; acc -= A[50] * w[16]; acc -= A[51] * w[17]; acc -= A[52] * w[18]; acc -= A[53] * w[19]; acc -= A[54] * w[20]; w[12] = acc; }
+    { double acc = w[11]; acc -= A[35] * w[12]; acc -= A[36] * w[13]; acc -= A[37] * w[14]; acc -= A[38] * w[15]; acc -= A[39] * w[16]; acc -= A[40] * w[17]; acc -= A[41] * w[18]; acc -= A[42] * w[19]; acc -= A[43] * w[20]; w[11] = acc; }
+    { double acc = w[10]; acc -= A[23] * w[11]; acc -= A[24] * w[12]; acc -= A[25] * w[13]; acc -= A[26] * w[14]; acc -= A[27] * w[15]; acc -= A[28] * w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; w[10] = acc; }
+    { int p = 10 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
+    { int p = 10 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
+    { int p = 10 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
+    { int p = 10 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 10 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 10 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 10 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { int p = 10 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { int p = 10 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    { int p = 10 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
+    { int p = 10 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    w[0] -= off[0] * w[12];
+    w[1] -= off[1] * w[13];
+    w[2] -= off[2] * w[14];
+    w[8] -= off[3] * w[15];
+    w[9] -= off[4] * w[16];
+    w[7] -= off[5] * w[17];
+    w[3] -= off[6] * w[18];
+    w[4] -= off[7] * w[18];
+    w[5] -= off[8] * w[18];
+    w[6] -= off[9] * w[18];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[21]); }
+    { double acc = w[8]; w[8] = acc * (1.0 / A[20]); }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
+}
+static void solve_transposed_dead_centre_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    (void)off;
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
+    { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
+    { double acc = w[6]; acc -= A[15] * w[3]; acc -= A[16] * w[4]; acc -= A[17] * w[5]; w[6] = acc * (1.0 / A[18]); }
+    { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
+    { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
+    { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
+    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_dead_centre(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 21; ++j) w[j] = c[col_order_dead_centre[j]];
+    solve_transposed_dead_centre_0(A, off, piv, w);
+    solve_transposed_dead_centre_1(A, off, piv, w);
+    for (int i = 0; i < 21; ++i) x[row_order_dead_centre[i]] = w[i];
+}
+
 const kinegen_model slider_crank_euler_parameters_dead_centre = {
     .layout = &slider_crank_euler_parameters_layout, .case_name = "dead_centre",
     .n_q = SLIDER_CRANK_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 78,
@@ -1209,7 +1362,7 @@ const kinegen_model slider_crank_euler_parameters_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 143, .n_diag = 68, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 10, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
-    .solve = solve_dead_centre,
+    .solve = solve_dead_centre, .solve_transposed = solve_transposed_dead_centre,
     .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

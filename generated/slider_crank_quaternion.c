@@ -908,6 +908,69 @@ static void solve_run(const double *A, const double *off, const int *piv, const 
     for (int j = 0; j < 18; ++j) x[col_order_run[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_run) */
+static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[17]; w[17] = acc * (1.0 / A[27]); }
+    w[12] -= off[19] * w[17];
+    w[15] -= off[20] * w[17];
+    w[16] -= off[21] * w[17];
+    { double acc = w[14]; w[14] = acc * (1.0 / A[18]); }
+    { double acc = w[15]; acc -= A[21] * w[14]; w[15] = acc * (1.0 / A[22]); }
+    { double acc = w[16]; acc -= A[24] * w[14]; acc -= A[25] * w[15]; w[16] = acc * (1.0 / A[26]); }
+    { double acc = w[15]; acc -= A[23] * w[16]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[19] * w[15]; acc -= A[20] * w[16]; w[14] = acc; }
+    { int p = 14 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 14 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 14 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    w[8] -= off[12] * w[14];
+    w[13] -= off[13] * w[14];
+    w[7] -= off[14] * w[15];
+    w[10] -= off[15] * w[15];
+    w[5] -= off[16] * w[16];
+    w[6] -= off[17] * w[16];
+    w[11] -= off[18] * w[16];
+    { double acc = w[13]; w[13] = acc * (1.0 / A[17]); }
+    w[1] -= off[9] * w[13];
+    w[3] -= off[10] * w[13];
+    w[9] -= off[11] * w[13];
+    { double acc = w[12]; w[12] = acc * (1.0 / A[16]); }
+    w[0] -= off[6] * w[12];
+    w[4] -= off[7] * w[12];
+    w[9] -= off[8] * w[12];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[15]); }
+    w[6] -= off[5] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[14]); }
+    w[2] -= off[2] * w[10];
+    w[3] -= off[3] * w[10];
+    w[4] -= off[4] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[13]); }
+    w[3] -= off[0] * w[9];
+    w[4] -= off[1] * w[9];
+    { double acc = w[8]; w[8] = acc * (1.0 / A[12]); }
+    { double acc = w[7]; w[7] = acc * (1.0 / A[11]); }
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    { double acc = w[6]; acc -= A[9] * w[5]; w[6] = acc * (1.0 / A[10]); }
+    { double acc = w[5]; acc -= A[8] * w[6]; w[5] = acc; }
+    { int p = 5 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { int p = 5 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_run(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 18; ++j) w[j] = c[col_order_run[j]];
+    solve_transposed_run_0(A, off, piv, w);
+    for (int i = 0; i < 18; ++i) x[row_order_run[i]] = w[i];
+}
+
 const kinegen_model slider_crank_quaternion_run = {
     .layout = &slider_crank_quaternion_layout, .case_name = "run",
     .n_q = SLIDER_CRANK_QUATERNION_N_Q, .n_v = SLIDER_CRANK_QUATERNION_N_V, .n_inputs = 1, .n_jac = 48,
@@ -919,7 +982,7 @@ const kinegen_model slider_crank_quaternion_run = {
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 28, .n_diag = 26, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 22, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
-    .solve = solve_run,
+    .solve = solve_run, .solve_transposed = solve_transposed_run,
     .work_doubles = SLIDER_CRANK_QUATERNION_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_QUATERNION_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -1030,6 +1093,68 @@ static void solve_dead_centre(const double *A, const double *off, const int *piv
     for (int j = 0; j < 18; ++j) x[col_order_dead_centre[j]] = y[j];
 }
 
+/* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
+ * last block (every case with this plan calls them through solve_transposed_dead_centre) */
+static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+    { double acc = w[12]; w[12] = acc * (1.0 / A[16]); }
+    { double acc = w[13]; acc -= A[22] * w[12]; w[13] = acc * (1.0 / A[23]); }
+    { double acc = w[14]; acc -= A[28] * w[12]; acc -= A[29] * w[13]; w[14] = acc * (1.0 / A[30]); }
+    { double acc = w[15]; acc -= A[34] * w[12]; acc -= A[35] * w[13]; acc -= A[36] * w[14]; w[15] = acc * (1.0 / A[37]); }
+    { double acc = w[16]; acc -= A[40] * w[12]; acc -= A[41] * w[13]; acc -= A[42] * w[14]; acc -= A[43] * w[15]; w[16] = acc * (1.0 / A[44]); }
+    { double acc = w[17]; acc -= A[46] * w[12]; acc -= A[47] * w[13]; acc -= A[48] * w[14]; acc -= A[49] * w[15]; acc -= A[50] * w[16]; w[17] = acc * (1.0 / A[51]); }
+    { double acc = w[16]; acc -= A[45] * w[17]; w[16] = acc; }
+    { double acc = w[15]; acc -= A[38] * w[16]; acc -= A[39] * w[17]; w[15] = acc; }
+    { double acc = w[14]; acc -= A[31] * w[15]; acc -= A[32] * w[16]; acc -= A[33] * w[17]; w[14] = acc; }
+    { double acc = w[13]; acc -= A[24] * w[14]; acc -= A[25] * w[15]; acc -= A[26] * w[16]; acc -= A[27] * w[17]; w[13] = acc; }
+    { double acc = w[12]; acc -= A[17] * w[13]; acc -= A[18] * w[14]; acc -= A[19] * w[15]; acc -= A[20] * w[16]; acc -= A[21] * w[17]; w[12] = acc; }
+    { int p = 12 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
+    { int p = 12 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { int p = 12 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { int p = 12 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { int p = 12 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { int p = 12 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    w[0] -= off[4] * w[12];
+    w[4] -= off[5] * w[12];
+    w[1] -= off[6] * w[13];
+    w[3] -= off[7] * w[13];
+    w[5] -= off[8] * w[14];
+    w[9] -= off[9] * w[15];
+    w[8] -= off[10] * w[16];
+    w[11] -= off[11] * w[16];
+    w[6] -= off[12] * w[17];
+    w[7] -= off[13] * w[17];
+    w[10] -= off[14] * w[17];
+    { double acc = w[11]; w[11] = acc * (1.0 / A[15]); }
+    w[2] -= off[1] * w[11];
+    w[3] -= off[2] * w[11];
+    w[4] -= off[3] * w[11];
+    { double acc = w[10]; w[10] = acc * (1.0 / A[14]); }
+    w[7] -= off[0] * w[10];
+    { double acc = w[9]; w[9] = acc * (1.0 / A[13]); }
+    { double acc = w[8]; w[8] = acc * (1.0 / A[12]); }
+    { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
+    { double acc = w[7]; acc -= A[10] * w[6]; w[7] = acc * (1.0 / A[11]); }
+    { double acc = w[6]; acc -= A[9] * w[7]; w[6] = acc; }
+    { int p = 6 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { int p = 6 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
+    { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
+    { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
+    { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
+    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
+    { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
+    { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
+}
+
+/* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
+static void solve_transposed_dead_centre(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+    for (int j = 0; j < 18; ++j) w[j] = c[col_order_dead_centre[j]];
+    solve_transposed_dead_centre_0(A, off, piv, w);
+    for (int i = 0; i < 18; ++i) x[row_order_dead_centre[i]] = w[i];
+}
+
 const kinegen_model slider_crank_quaternion_dead_centre = {
     .layout = &slider_crank_quaternion_layout, .case_name = "dead_centre",
     .n_q = SLIDER_CRANK_QUATERNION_N_Q, .n_v = SLIDER_CRANK_QUATERNION_N_V, .n_inputs = 1, .n_jac = 46,
@@ -1041,7 +1166,7 @@ const kinegen_model slider_crank_quaternion_dead_centre = {
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 52, .n_diag = 31, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 15, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
-    .solve = solve_dead_centre,
+    .solve = solve_dead_centre, .solve_transposed = solve_transposed_dead_centre,
     .work_doubles = SLIDER_CRANK_QUATERNION_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_QUATERNION_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

@@ -306,6 +306,7 @@ def _four_bar_program(folder: Path, name: str, source: str, optimization: str) -
 
 SOLVE_PROGRAM = r"""
 #include "four_bar_quaternion.h"
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 static four_bar_quaternion_workspace w;
@@ -332,15 +333,34 @@ static int run(const kinegen_model *m, int k) {
         memcpy(states[k][i] + m->n_q + m->n_v, s.a, sizeof(double) * (size_t)m->n_v);
         states[k][i][m->n_q + 2 * m->n_v] = s.condition;
     }
+    if (k == 0) { /* the written-out solves against Phi_q itself (s.jac: its values the factors are of) */
+        double c[FOUR_BAR_QUATERNION_N_V], x[FOUR_BAR_QUATERNION_N_V], xt[FOUR_BAR_QUATERNION_N_V];
+        double w[FOUR_BAR_QUATERNION_N_V], r[FOUR_BAR_QUATERNION_N_V] = {0}, rt[FOUR_BAR_QUATERNION_N_V] = {0};
+        double big = 0.0, worst = 0.0, worst_t = 0.0;
+        for (i = 0; i < m->n_v; ++i) c[i] = (i % 2 ? -1.0 : 1.0) * (1.0 + 0.01 * i);
+        m->solve(s.store, s.off, s.pivots, c, x, w);
+        m->solve_transposed(s.store, s.off, s.pivots, c, xt, w);
+        for (i = 0; i < m->n_jac; ++i) {
+            r[m->jac_rows[i]] += s.jac[i] * x[m->jac_cols[i]];
+            rt[m->jac_cols[i]] += s.jac[i] * xt[m->jac_rows[i]];
+            big = fmax(big, fabs(s.jac[i]) * fmax(fabs(x[m->jac_cols[i]]), fabs(xt[m->jac_rows[i]])));
+        }
+        for (i = 0; i < m->n_v; ++i) {
+            worst = fmax(worst, fabs(r[i] - c[i]));
+            worst_t = fmax(worst_t, fabs(rt[i] - c[i]));
+        }
+        printf("residuals %.3g %.3g\n", worst / big, worst_t / big);
+    }
     return steps;
 }
 
 int main(void) {
     for (int c = 0; c < FOUR_BAR_QUATERNION_N_CASES; ++c) {
         const kinegen_model *m = four_bar_quaternion_cases[c];
-        kinegen_model loop = *m; /* the same case solved by the solver's loop over the plan */
+        kinegen_model loop = *m; /* the same case solved by the solver's loops over the plan */
         loop.solve = NULL;
-        if (m->solve == NULL) return 2;
+        loop.solve_transposed = NULL;
+        if (m->solve == NULL || m->solve_transposed == NULL) return 2;
         int a = run(m, 0), b = run(&loop, 1);
         if (a != b || a < 2) return 3;
         printf("%s %d %s\n", m->case_name, a, memcmp(states[0], states[1], sizeof(states[0])) == 0 ? "identical" : "differ");
@@ -351,15 +371,20 @@ int main(void) {
 
 
 def test_the_written_out_block_solve_is_the_solvers_loop_to_the_bit(tmp_path):
-    """Each case's Phi_q solve, written out straight-line by the C backend (kinegen_model.solve, one
-    function per distinct plan), does the operations of the solver's loop over the plan in the same
-    order: every case of the four-bar solved both ways (the case's struct copied with solve NULL),
-    the states of every step and the condition estimates equal to the bit. Real C, strict flags."""
+    """Each case's Phi_q solves, written out straight-line by the C backend (kinegen_model.solve and
+    solve_transposed, per distinct plan), do the operations of the solver's loops over the plan in the
+    same order: every case of the four-bar solved both ways (the case's struct copied with both NULL),
+    certified, with the condition estimate (its transposed solves), the states of every step and the
+    estimates equal to the bit; and at the last step both written-out solves leave residuals |Phi_q x - c|
+    and |Phi_q^T x - c| below 1e-14 of max |Phi_q_ij x_j| against the Jacobian values themselves. Real C,
+    strict flags."""
     run = _four_bar_program(tmp_path, "solve", SOLVE_PROGRAM, "-O2")
     assert run.returncode == 0, (run.returncode, run.stdout, run.stderr)
-    lines = run.stdout.splitlines()
+    lines = [line for line in run.stdout.splitlines() if not line.startswith("residuals ")]
     assert len(lines) == len(load_module(GENERATED / "four_bar_quaternion.py").CASES)
     assert all(line.endswith(" identical") and int(line.split()[1]) >= 2 for line in lines), lines
+    residuals = [[float(x) for x in line.split()[1:]] for line in run.stdout.splitlines() if line.startswith("residuals ")]
+    assert len(residuals) == len(lines) and all(max(pair) < 1e-14 for pair in residuals), residuals
 
 
 def test_the_c_solver_finds_its_kernels_by_role_and_refuses_a_table_that_declares_them_otherwise(tmp_path):

@@ -141,18 +141,20 @@ def plan_arrays(rows: tuple[int, ...], cols: tuple[int, ...], plan: Plan, name: 
 STRAIGHT_SOLVE_LIMIT = 50_000
 
 
-def straight_solve(arrays: _PlanArrays) -> list[list[str]] | None:
-    """The block solve y = M^-1 b (in the plan's permuted order) for a plan's factors, written out: the
-    bodies of C functions of (``A`` the blocks' LU factors, ``off`` the values below them, ``piv`` the
-    blocks' pivots, ``b``, ``y``), called in order. kinegen_solver.c's ``solve`` loop with every index a
-    constant -- per block its rows' right-hand sides less the entries below the blocks, the block's row
-    interchanges, L's and U's substitutions --, cut at block boundaries into functions of at most about
+def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]]] | None:
+    """The block solves y = M^-1 b and w <- M^-T w (in the plan's permuted order) for a plan's factors,
+    written out: the bodies of C functions of (``A`` the blocks' LU factors, ``off`` the values below
+    them, ``piv`` the blocks' pivots, then ``b`` and ``y``, or ``w``), called in order. kinegen_solver.c's
+    ``solve`` and ``solve_transposed`` loops with every index a constant -- per block its rows'
+    right-hand sides less the entries below the blocks, the block's row interchanges, L's and U's
+    substitutions (transposed: the blocks from the last, U^T, L^T, the interchanges, then the entries
+    below the block) --, cut at block boundaries into functions of at most about
     :data:`config.PART_STATEMENTS` statements (the generated kernels' length, which keeps the compile
     time linear). None for a plan over :data:`STRAIGHT_SOLVE_LIMIT`."""
     starts, stores = arrays.block_start, arrays.block_store
     if sum((b - a) ** 2 for a, b in itertools.pairwise(starts)) + len(arrays.off_col) + starts[-1] > STRAIGHT_SOLVE_LIMIT:
         return None
-    pieces: list[list[str]] = [[]]
+    forward, transposed = [], []
     for block, (first, end) in enumerate(itertools.pairwise(starts)):
         n, base = end - first, stores[block]
         lines = []
@@ -170,10 +172,32 @@ def straight_solve(arrays: _PlanArrays) -> list[list[str]] | None:
         for k in range(n - 1, -1, -1):
             lines.append(f"y[{first + k}] *= 1.0 / A[{base + k + k * n}];")
             lines += [f"y[{first + i}] -= A[{base + i + k * n}] * y[{first + k}];" for i in range(k)]
+        forward.append(lines)
+        lines = []
+        for k in range(n):  # U^T
+            lines.append(f"{{ double acc = w[{first + k}];" + "".join(f" acc -= A[{base + i + k * n}] * w[{first + i}];" for i in range(k))
+                         + f" w[{first + k}] = acc * (1.0 / A[{base + k + k * n}]); }}")  # fmt: skip
+        for k in range(n - 1, -1, -1):  # L^T
+            if k + 1 < n:
+                lines.append(f"{{ double acc = w[{first + k}];" + "".join(f" acc -= A[{base + i + k * n}] * w[{first + i}];" for i in range(k + 1, n))
+                             + f" w[{first + k}] = acc; }}")  # fmt: skip
+        if n > 1:
+            lines += [f"{{ int p = {first} + piv[{k}]; double t = w[{k}]; w[{k}] = w[p]; w[p] = t; }}" for k in range(end - 1, first - 1, -1)]
+        for row in range(first, end):
+            lines += [f"w[{arrays.off_col[e]}] -= off[{e}] * w[{row}];" for e in range(arrays.off_start[row], arrays.off_start[row + 1])]
+        transposed.append(lines)
+    return _pieces(forward), _pieces(transposed[::-1])
+
+
+def _pieces(blocks: list[list[str]]) -> list[list[str]]:
+    """Consecutive blocks' statements in functions of at most about :data:`config.PART_STATEMENTS`
+    statements (a block's are never cut), each opening with ``(void)`` of the arguments it does not read."""
+    pieces: list[list[str]] = [[]]
+    for lines in blocks:
         if pieces[-1] and sum(line.count(";") for line in pieces[-1] + lines) > config.PART_STATEMENTS:
             pieces.append([])
         pieces[-1] += lines
-    for piece in pieces:  # (void) the arguments a piece does not read
+    for piece in pieces:
         text = "\n".join(piece)
         piece[:0] = [f"(void){name};" for name in ("A", "off", "piv") if f"{name}[" not in text]
     return pieces
@@ -398,11 +422,11 @@ class _Model:
             arrays = plan_arrays(case.jac_rows, case.jac_cols, case.plan, f"{d.model}/{name}: Phi_q")
             values = max((len(rows) for rows, _ in case.patterns.values()), default=0)  # the largest sensitivity kernel's
             key = tuple(map(tuple, (arrays.block_start, arrays.block_store, arrays.row_order, arrays.col_order, arrays.off_start, arrays.off_col)))
-            lines = None
+            written = None
             if key not in solves:
-                lines = straight_solve(arrays)
-                solves[key] = None if lines is None else f"solve_{name}"
-            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values, solve_lines=lines, solve=solves[key]))
+                written = straight_solve(arrays)
+                solves[key] = None if written is None else name
+            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values, written=written, solve=solves[key]))
         shared = []
         for kernel in d.kernels.values():
             function = f"{stem}_frames" if kernel.name == "frames" else f"shared_{kernel.name}"

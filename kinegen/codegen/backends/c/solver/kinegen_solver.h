@@ -263,6 +263,8 @@ typedef struct kinegen_model {
      * work; x and b may alias): the plan's block solve written out for this case, straight-line (no
      * loop over the blocks or their entries); NULL: the solver's loop over the plan (same operations) */
     void (*solve)(const double *store, const double *off, const int *pivots, const double *b, double *x, double *y);
+    /* x = Phi_q^-T c likewise (w: n_v values of work; x and c may alias), NULL with solve */
+    void (*solve_transposed)(const double *store, const double *off, const int *pivots, const double *c, double *x, double *w);
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
     int n_kernels;                 /* every kernel of the case, as data (with design parameters: */
     const kinegen_kernel *kernels; /*   the ones taking p, slot p last) */
