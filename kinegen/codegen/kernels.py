@@ -649,7 +649,7 @@ def describe(
     (second derivatives of gamma), and a module that only solves designs does not need them.
     ``forces`` False leaves out the force solve's and the supply's kernels (``statics`` None, no
     ``supply``): the kinematics alone, as the in-memory path (:mod:`kinegen.codegen.inmemory`) evaluates
-    them (the excavator's description 0.9 -> 0.2 s)."""
+    them (the excavator's description without sensitivities 0.44 -> 0.07 s, systems built)."""
     systems = systems or build_systems(model, parametrization)
     first = next(iter(systems.values()))
     coords = first.coordinates

@@ -1353,7 +1353,8 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_model, col_order, "int*"), FIELD(kinegen_model, n_store, "int"), FIELD(kinegen_model, n_diag, "int"),
     FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
     FIELD(kinegen_model, off_start, "int*"), FIELD(kinegen_model, off_col, "int*"), FIELD(kinegen_model, off_value, "int*"),
-    FIELD(kinegen_model, solve, "function"), FIELD(kinegen_model, solve_transposed, "function"), FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
+    FIELD(kinegen_model, solve, "function"), FIELD(kinegen_model, solve_transposed, "function"),
+    FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
     FIELD(kinegen_model, kernels, "pointer"), FIELD(kinegen_model, design, "pointer"),
 
     FIELD(kinegen_pattern, n, "int"), FIELD(kinegen_pattern, rows, "int*"), FIELD(kinegen_pattern, cols, "int*"),
