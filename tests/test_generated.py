@@ -124,6 +124,34 @@ def test_half_the_statements_printed_in_a_forked_process_give_the_bytes_one_proc
     assert named == {name: hashlib.sha256(text.encode()).hexdigest() for name, text in made[True]["c-model"].items()}
 
 
+def test_compiled_templates_are_kept_in_the_cache_and_give_the_same_bytes(tmp_path, monkeypatch):
+    """The backends' Jinja templates, compiled once into kinegen's cache (templates/), are loaded
+    from there next time -- nothing compiled -- and render the same bytes; a cache that cannot be
+    written (a file where its folder belongs) costs a compilation, not the build."""
+    import jinja2
+
+    from kinegen.codegen import templates
+
+    def fresh_generate() -> dict:
+        templates.environment.cache_clear()  # a new process's environment
+        return writer.generate(model("four_bar"), rotations.get("quaternion"))
+
+    try:
+        monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+        cold = fresh_generate()
+        kept = sorted((tmp_path / "cache" / "templates").iterdir())
+        assert len(kept) == 5 and all(path.stat().st_size > 0 for path in kept)  # functions, module (Python); functions, model .c, .h (C)
+        compiled = []
+        original = jinja2.Environment.compile
+        monkeypatch.setattr(jinja2.Environment, "compile", lambda self, *a, **k: compiled.append(a[1]) or original(self, *a, **k))
+        assert fresh_generate() == cold and compiled == []
+        (tmp_path / "file").write_text("")
+        monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "file"))
+        assert fresh_generate() == cold and len(compiled) == 5
+    finally:
+        templates.environment.cache_clear()  # the other tests' environment: kinegen's cache
+
+
 def test_the_printers_own_methods_give_doprints_text_for_every_statement():
     """shapes.code prints with the printer's methods, not through doprint: each of the three printers
     gives doprint's text for every statement of the four-bar (the excavator's, sensitivity kernels

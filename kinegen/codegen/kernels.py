@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import symengine as se
 import sympy as sp
 
 import kinegen
@@ -46,7 +47,6 @@ from kinegen.symbolic.assembly import (
     along,
     build_systems,
     generic_body,
-    tangent_jacobian,
 )
 from kinegen.symbolic.blocks import block_triangular
 
@@ -340,95 +340,114 @@ def _nominal(model: Model) -> dict[sp.Symbol, sp.Expr]:
     return {d.symbol: d.nominal for d in model.design}
 
 
-def _by_design(expr: sp.Expr, symbols: tuple[sp.Symbol, ...]) -> list[tuple[int, sp.Expr]]:
-    """(parameter, d expr/dp) for every design parameter ``expr`` depends on, derivative not
-    identically zero. Rows hold the design parameters explicitly (the frame symbols do not
-    depend on them), so this is one derivative per parameter a row uses."""
-    derivatives = engine.gradient(expr, symbols)
-    return [(k, d) for k, p in enumerate(symbols) if p in derivatives for d in [derivatives[p]] if d != 0]
-
-
-def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[list[tuple[int, sp.Expr]]]:
-    """Phi_p of ``rows``: per row the (parameter, dPhi/dp) of every entry not identically zero."""
-    return [_by_design(row.phi, symbols) for row in rows]
-
-
 def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.Symbol, ...]:
     """``v_<body>_<c>`` -> ``<letter>_<body>_<c>``: a change of those velocity coordinates."""
     return tuple(sp.Symbol(letter + str(s)[1:], real=True) for s in symbols)
 
 
-def _cached_sensitivity_rows(
-    rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...], cache: dict
-) -> tuple[list, list]:
-    """:func:`_sensitivity_rows`, each row derived once per content (its name and equation): a driver
-    at the same place in several cases is the same row, with the same input symbols."""
-    missing = [r for r in rows if (r.name, r.phi, r.is_driver) not in cache]
-    if missing:
-        for row, dvel, dacc in zip(missing, *_sensitivity_rows(missing, coords, symbols)):
-            cache[row.name, row.phi, row.is_driver] = (dvel, dacc)
-    done = [cache[r.name, r.phi, r.is_driver] for r in rows]
-    return [d for d, _ in done], [a for _, a in done]
+class _Sensitivities:
+    """The rows' parts of the sensitivity kernels, derived in SymEngine: each row's expressions are
+    converted once, and the entries stay SymEngine's (the CSE takes them so, their symbols by name
+    in ``symbols``). A row is derived once per content (its name and equation): a driver at the
+    same place in several cases is the same row, with the same input symbols."""
 
+    def __init__(self, coords: Coordinates, design: tuple[sp.Symbol, ...]) -> None:
+        self.coords = coords
+        self._bridge = engine.Bridge()
+        to = self._bridge.to
+        self._v = [to(s) for s in coords.velocity_symbols]
+        self._a = [to(s) for s in _acceleration_symbols(coords)]
+        self._design = [to(s) for s in design]
+        self._tangents: dict[str, list] = {}
+        self._rows: dict[tuple, tuple[list, list]] = {}
+        self._by_column = {c: k for k, body in enumerate(coords.bodies)
+                           for c in range(body.velocity_offset, body.velocity_offset + len(body.velocity))}  # fmt: skip
 
-def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...]) -> tuple[list, list]:
-    """What the runtime needs to differentiate the velocity and acceleration solves by the
-    design parameters, row by row, as sparse matrices. With Phi(q(p), u, p) = 0 solved, a
-    parameter moves the configuration along S = dq/dp, the velocities by V and the
-    accelerations by W; differentiating Phi_q v = nu and Phi_q a = gamma gives
-    Phi_q V = -(M_v S + E_v) and Phi_q W = -(M_a S + N_a V + E_a), with
-    M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp, M_a = D_q(Phi_q a - gamma),
-    N_a = d(Phi_q a - gamma)/dv, E_a = d(Phi_q a - gamma)/dp (D_q: the derivatives along the
-    velocity coordinates' tangent directions, as for Phi_q).
+    @property
+    def symbols(self) -> dict[str, sp.Symbol]:
+        """The symbols of every entry made so far, by name."""
+        return self._bridge.names
 
-    Returns (dvel, dacc): per row the (column, expression) entries of [M_v | E_v] (columns
-    0..n_v-1 the coordinates, then the parameters) and of [M_a | N_a | E_a] (n_v coordinate,
-    n_v velocity, then the parameter columns)."""
-    v, a = coords.velocity_symbols, _acceleration_symbols(coords)
-    n = len(v)
-    by_column = {c: k for k, body in enumerate(coords.bodies) for c in range(body.velocity_offset, body.velocity_offset + len(body.velocity))}
-    dvel, dacc = [], []
-    for row in rows:
+    def design_derivatives(self, rows: list[Row]) -> list[list[tuple[int, se.Basic]]]:
+        """Phi_p of ``rows``: per row the (parameter, dPhi/dp) of every entry not identically zero."""
+        return [self._by_design(self._bridge.to(row.phi)) for row in rows]
+
+    def rows(self, rows: list[Row]) -> tuple[list, list]:
+        """(dvel, dacc) of ``rows`` (:meth:`_derive`), each row's derived once."""
+        for row in rows:
+            key = (row.name, row.phi, row.is_driver)
+            if key not in self._rows:
+                self._rows[key] = self._derive(row)
+        done = [self._rows[r.name, r.phi, r.is_driver] for r in rows]
+        return [d for d, _ in done], [a for _, a in done]
+
+    def _by_design(self, expr: se.Basic) -> list[tuple[int, se.Basic]]:
+        """(parameter, d expr/dp) for every design parameter ``expr`` depends on, derivative not
+        identically zero. Rows hold the design parameters explicitly (the frame symbols do not
+        depend on them), so this is one derivative per parameter a row uses."""
+        free = expr.free_symbols
+        return [(k, d) for k, p in enumerate(self._design) if p in free for d in [expr.diff(p)] if d != 0]
+
+    def _tangent(self, expr: se.Basic, bodies: list) -> dict[int, se.Basic]:
+        """:func:`kinegen.symbolic.assembly.tangent_jacobian` in SymEngine."""
+        out = {}
+        for body in bodies:
+            if body.name not in self._tangents:
+                to = self._bridge.to
+                self._tangents[body.name] = [[(to(s), to(d)) for s, d in pairs] for pairs in body.tangents]
+            for k, pairs in enumerate(self._tangents[body.name]):
+                total = se.Add(*(expr.diff(s) * d for s, d in pairs))
+                if total != 0:
+                    out[body.velocity_offset + k] = total
+        return out
+
+    def _derive(self, row: Row) -> tuple[list, list]:
+        """What the runtime needs to differentiate the velocity and acceleration solves by the
+        design parameters, for one row, as sparse matrix rows. With Phi(q(p), u, p) = 0 solved, a
+        parameter moves the configuration along S = dq/dp, the velocities by V and the
+        accelerations by W; differentiating Phi_q v = nu and Phi_q a = gamma gives
+        Phi_q V = -(M_v S + E_v) and Phi_q W = -(M_a S + N_a V + E_a), with
+        M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp, M_a = D_q(Phi_q a - gamma),
+        N_a = d(Phi_q a - gamma)/dv, E_a = d(Phi_q a - gamma)/dp (D_q: the derivatives along the
+        velocity coordinates' tangent directions, as for Phi_q).
+
+        Returns (dvel, dacc): the (column, expression) entries of [M_v | E_v] (columns
+        0..n_v-1 the coordinates, then the parameters) and of [M_a | N_a | E_a] (n_v coordinate,
+        n_v velocity, then the parameter columns)."""
+        to, v, a, n = self._bridge.to, self._v, self._a, len(self._v)
         columns = row.jacobian_columns
-        bodies = [coords.bodies[k] for k in dict.fromkeys(by_column[c] for c in columns)]
-        jacobian = row.jacobian
-        velocity = sum((jacobian[c] * v[c] for c in columns), sp.Integer(0)) - row.nu
-        acceleration = sum((jacobian[c] * a[c] for c in columns), sp.Integer(0)) - row.gamma
+        bodies = [self.coords.bodies[k] for k in dict.fromkeys(self._by_column[c] for c in columns)]
+        jacobian = {c: to(row.jacobian[c]) for c in columns}
+        velocity = se.Add(*(jacobian[c] * v[c] for c in columns)) - to(row.nu)
+        acceleration = se.Add(*(jacobian[c] * a[c] for c in columns)) - to(row.gamma)
         # every velocity coordinate of the row's bodies: gamma may hold one whose Phi_q entry is zero
         # (a point row's y component has no theta_y column, its gamma has omega_y^2)
         velocities = [c for b in bodies for c in range(b.velocity_offset, b.velocity_offset + len(b.velocity))]
         if row.is_driver:
-            m_v = tangent_jacobian(velocity, bodies)
-            by_velocity = engine.gradient(acceleration, [v[c] for c in velocities])
-            n_a = {c: d for c in velocities if v[c] in by_velocity for d in [by_velocity[v[c]]] if d != 0}
+            m_v = self._tangent(velocity, bodies)
+            n_a = {c: d for c in velocities for d in [acceleration.diff(v[c])] if d != 0}
         else:
-            m_v, n_a = _joint_rates(jacobian, columns, velocities, bodies, v)
-        dvel.append([*sorted(m_v.items()), *((n + k, d) for k, d in _by_design(velocity, symbols))])
-        dacc.append([
-            *sorted(tangent_jacobian(acceleration, bodies).items()), *((n + c, d) for c, d in sorted(n_a.items())),
-            *((2 * n + k, d) for k, d in _by_design(acceleration, symbols)),
-        ])  # fmt: skip
-    return dvel, dacc
+            # a joint or a normalization (no time dependence): gamma is exactly -D_q(Phi_q v) v, so from the
+            # second derivatives H[c][k] = D_k(Phi_q[c]), M_v[k] = sum_c H[c][k] v_c and, as Phi_q a - gamma =
+            # Phi_q a + sum_ck H[c][k] v_c v_k, N_a[j] = sum_k H[j][k] v_k + sum_c H[c][j] v_c (cheaper than
+            # differentiating gamma by every velocity coordinate: a third of the derivation)
+            second = {c: self._tangent(jacobian[c], bodies) for c in columns}
+            m_v = {k: total for k in velocities for total in [se.Add(*(second[c][k] * v[c] for c in columns if k in second[c]))]
+                   if total != 0}  # fmt: skip
+            n_a = {}
+            for j in velocities:
+                total = se.Add(*(e * v[k] for k, e in second.get(j, {}).items()), *(second[c][j] * v[c] for c in columns if j in second[c]))
+                if total != 0:
+                    n_a[j] = total
+        dvel = [*sorted(m_v.items()), *((n + k, d) for k, d in self._by_design(velocity))]
+        dacc = [
+            *sorted(self._tangent(acceleration, bodies).items()), *((n + c, d) for c, d in sorted(n_a.items())),
+            *((2 * n + k, d) for k, d in self._by_design(acceleration)),
+        ]  # fmt: skip
+        return dvel, dacc
 
 
-def _joint_rates(jacobian: dict[int, sp.Expr], columns: list[int], velocities: list[int], bodies, v) -> tuple[dict, dict]:
-    """M_v = D_q(Phi_q v) and N_a = d(Phi_q a - gamma)/dv of a row without time dependence (a joint
-    or a normalization), whose gamma is exactly -D_q(Phi_q v) v: from the second derivatives
-    H[c][k] = D_k(Phi_q[c]) (one tangent derivative of each Jacobian entry), M_v[k] = sum_c H[c][k] v_c
-    and, as Phi_q a - gamma = Phi_q a + sum_ck H[c][k] v_c v_k, N_a[j] = sum_k H[j][k] v_k + sum_c H[c][j] v_c.
-    Cheaper than differentiating gamma by every velocity coordinate (a third of the derivation)."""
-    zero = sp.Integer(0)
-    second = {c: tangent_jacobian(jacobian[c], bodies) for c in columns}
-    m_v = {k: total for k in velocities for total in [sp.Add(*(second[c][k] * v[c] for c in columns if k in second[c]))] if total != 0}
-    n_a = {}
-    for j in velocities:
-        total = sp.Add(*(e * v[k] for k, e in second.get(j, {}).items()), *(second[c][j] * v[c] for c in columns if j in second[c]))
-        if total != zero:
-            n_a[j] = total
-    return m_v, n_a
-
-
-def _entry_groups(rows: list[Row], entries: list[list[tuple[int, sp.Expr]]], key: tuple) -> tuple[Group, ...]:
+def _entry_groups(rows: list[Row], entries: list[list[tuple[int, se.Basic]]], key: tuple, symbols: dict[str, sp.Symbol]) -> tuple[Group, ...]:
     """The entries of ``rows`` in groups of one joint, driver or normalization each (sharing
     their subexpressions), keyed ``key + (the rows' names and equations,)``: eliminated once for
     every backend and every case."""
@@ -437,7 +456,7 @@ def _entry_groups(rows: list[Row], entries: list[list[tuple[int, sp.Expr]]], key
         values = [e for row in entries[start:end] for _, e in row]
         if values:  # keyed by content: the same driver in several cases is eliminated and printed once
             content = tuple((row.name, row.phi) for row in rows[start:end])
-            groups.append(Group((*key, content), lambda values=values: values, {}))
+            groups.append(Group((*key, content), lambda values=values: values, {}, symbols))
     return tuple(groups)
 
 
@@ -677,14 +696,14 @@ def describe(
     design_symbols = tuple(d.symbol for d in model.design)
     sensitive = bool(model.design) and sensitivities
     joint_sensitivity: dict[str, list] = {}
-    derived: dict = {}  # the sensitivity rows by content (_cached_sensitivity_rows)
+    derived = _Sensitivities(coords, design_symbols)
     if sensitive:  # the joint rows' parts of the sensitivity kernels, common to every case
-        joint_sensitivity["phi_p"] = _design_derivatives(joints, design_symbols)
-        joint_sensitivity["dvel"], joint_sensitivity["dacc"] = _cached_sensitivity_rows(joints, coords, design_symbols, derived)
+        joint_sensitivity["phi_p"] = derived.design_derivatives(joints)
+        joint_sensitivity["dvel"], joint_sensitivity["dacc"] = derived.rows(joints)
         for kind, slots_, doc in SENSITIVITY_SECTIONS:
             entries = joint_sensitivity[kind]
             size = sum(map(len, entries))
-            section(f"joints_{kind}", (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), _entry_groups(joints, entries, (f"joints_{kind}",)),
+            section(f"joints_{kind}", (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), _entry_groups(joints, entries, (f"joints_{kind}",), derived.symbols),
                     size, f"{doc} of the joint rows ({size} entries).")  # fmt: skip
     shared_section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
@@ -752,12 +771,12 @@ def describe(
         }  # fmt: skip
         patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {}
         if sensitive:
-            driver_sensitivity = {"phi_p": _design_derivatives(drivers, design_symbols)}
-            driver_sensitivity["dvel"], driver_sensitivity["dacc"] = _cached_sensitivity_rows(drivers, coords, design_symbols, derived)
+            driver_sensitivity = {"phi_p": derived.design_derivatives(drivers)}
+            driver_sensitivity["dvel"], driver_sensitivity["dacc"] = derived.rows(drivers)
             for kind, slots_, doc in SENSITIVITY_SECTIONS:
                 entries = driver_sensitivity[kind]
                 size = sum(map(len, entries))
-                section(f"drivers_{kind}_{name}", (*slots_, "p"), _entry_groups(drivers, entries, (f"drivers_{kind}",)),
+                section(f"drivers_{kind}_{name}", (*slots_, "p"), _entry_groups(drivers, entries, (f"drivers_{kind}",), derived.symbols),
                         size, f"{doc} of the driver rows of case {name!r}.")  # fmt: skip
                 entries_pattern = _pattern(joint_sensitivity[kind]) + _pattern(entries, mj)
                 patterns[kind] = (tuple(i for i, _ in entries_pattern), tuple(j for _, j in entries_pattern))

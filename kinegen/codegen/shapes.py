@@ -65,10 +65,10 @@ def code(printer: CodePrinter, expr: sp.Expr) -> str:
     return printer.doprint(expr)
 
 
-def eliminate(expressions: Sequence[sp.Expr]) -> Statements:
+def eliminate(expressions: Sequence[sp.Expr], symbols: dict[str, sp.Symbol] | None = None) -> Statements:
     """CSE of ``expressions`` (irrational constants frozen to doubles first) by SymEngine
-    (:func:`kinegen.symbolic.engine.eliminate`)."""
-    temporaries, reduced = engine.eliminate(expressions)
+    (:func:`kinegen.symbolic.engine.eliminate`; ``symbols``: SymEngine expressions' symbols)."""
+    temporaries, reduced = engine.eliminate(expressions, symbols)
     return Statements(tuple(temporaries), tuple(reduced))
 
 
@@ -80,6 +80,8 @@ class Group:
     key: tuple | None
     expressions: Callable[[], list[sp.Expr]]
     rename: dict[sp.Symbol, sp.Symbol]
+    #: expressions made in SymEngine: their symbols by name (:func:`kinegen.symbolic.engine.eliminate`)
+    symbols: dict[str, sp.Symbol] | None = None
 
 
 @dataclass(frozen=True)
@@ -178,9 +180,9 @@ class Shapes:
     def statements(self, group: Group) -> Statements:
         """The group's statements, eliminated once per shape."""
         if group.key is None:
-            return eliminate(group.expressions())
+            return eliminate(group.expressions(), group.symbols)
         if group.key not in self._statements:
-            self._statements[group.key] = eliminate(group.expressions())
+            self._statements[group.key] = eliminate(group.expressions(), group.symbols)
         return self._statements[group.key]
 
     def printing(self, printers: Sequence[CodePrinter]) -> Printing:

@@ -59,12 +59,17 @@ class Bridge:
         return to_sympy(value, self.names, self._memo)
 
 
-def eliminate(expressions: Sequence[sp.Expr]) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]:
+def eliminate(
+    expressions: Sequence[sp.Expr | se.Basic], symbols: dict[str, sp.Symbol] | None = None
+) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]:
     """SymEngine's CSE of ``expressions``, irrational constants frozen to doubles first
     (:func:`freeze_numbers`): the temporaries as (``_t<k>``, value) in SymEngine's order (each
-    defined before its first use), and the expressions reduced."""
-    names = _names(s for e in expressions for s in e.free_symbols)
-    replacements, reduced = se.cse([freeze_numbers(se.sympify(e)) for e in expressions])
+    defined before its first use), and the expressions reduced. ``expressions`` are SymPy's, or
+    SymEngine's (made in SymEngine, not converted there and back) with ``symbols``: their symbols
+    by name (a :class:`Bridge`'s ``names``), which the results hold."""
+    names = dict(symbols or {})
+    names.update(_names(s for e in expressions if isinstance(e, sp.Basic) for s in e.free_symbols))
+    replacements, reduced = se.cse([freeze_numbers(e if isinstance(e, se.Basic) else se.sympify(e)) for e in expressions])
     # a condition (a Piecewise's ``h < 1e-4``) is not a number: written out where it is used, not a temporary
     conditions = {t: value for t, value in replacements if isinstance(value, Boolean)}
     replacements = [(t, value) for t, value in replacements if t not in conditions]
