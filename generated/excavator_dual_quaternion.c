@@ -3117,10 +3117,10 @@ void excavator_dual_quaternion_compute_inputs_digging(double t, double *out) {
     const double c14 = (9.0/20.0)*c13;
     const double c15 = (c8*c8);
     const double c16 = (c7*c7);
-    const double c17 = c5*(4.0 - 4.0*c12);
-    const double c18 = (9.0/20.0)*c3*(4.0 - 4.0*c13);
-    const double c19 = c8*(4.0 - 4.0*c15);
-    const double c20 = c7*(4.0 - 4.0*c16);
+    const double c17 = c5*(1.0 - c12);
+    const double c18 = (9.0/5.0)*c3*(1.0 - c13);
+    const double c19 = c8*(1.0 - c15);
+    const double c20 = c7*(1.0 - c16);
     out[0] = 0.7853981633974483*(-c2 + c1);
     out[1] = 626973.0/250000.0 - 17.0/40.0*c6 + (1.0/5.0)*c5 + c4;
     out[2] = 485803.0/250000.0 - c4 - 3.0/8.0*c8 + (7.0/40.0)*c5 + (17.0/40.0)*c7;
@@ -3129,10 +3129,10 @@ void excavator_dual_quaternion_compute_inputs_digging(double t, double *out) {
     out[5] = c14 + (2.0/5.0)*c12 - 17.0/20.0*c11;
     out[6] = (17.0/20.0)*c16 + (7.0/20.0)*c12 - 3.0/4.0*c15 - c14;
     out[7] = (3.0/4.0)*c16 - 1.0/10.0*c12 - 13.0/20.0*c15;
-    out[8] = 0.7853981633974483*(-2.0*c1*(4.0 - 4.0*c10) + 2.0*c2*(4.0 - 4.0*c9));
-    out[9] = -c18 - 2.0/5.0*c17 + (17.0/20.0)*c6*(4.0 - 4.0*c11);
-    out[10] = -17.0/20.0*c20 - 7.0/20.0*c17 + (3.0/4.0)*c19 + c18;
-    out[11] = -3.0/4.0*c20 + (1.0/10.0)*c17 + (13.0/20.0)*c19;
+    out[8] = 0.7853981633974483*(-8.0*c1*(1.0 - c10) + 8.0*c2*(1.0 - c9));
+    out[9] = -c18 - 8.0/5.0*c17 + (17.0/5.0)*c6*(1.0 - c11);
+    out[10] = -17.0/5.0*c20 - 7.0/5.0*c17 + c18 + 3.0*c19;
+    out[11] = (2.0/5.0)*c17 + (13.0/5.0)*c19 - 3.0*c20;
 }
 
 /* Enclosures of the driver inputs of case 'digging' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
@@ -3237,50 +3237,60 @@ void excavator_dual_quaternion_compute_input_ranges_digging(const double *span, 
     const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
     const kinegen_interval r98 = kinegen_iv_add(r93, r95);
     const kinegen_interval r99 = kinegen_iv_add(r98, r97);
-    const kinegen_interval r100 = kinegen_iv_const(-4.0, -4.0);
-    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
-    const kinegen_interval r102 = kinegen_iv_const(4.0, 4.0);
-    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
-    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
-    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
-    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
-    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r100 = kinegen_iv_neg(r61);
+    const kinegen_interval r101 = kinegen_iv_const(1.0, 1.0);
+    const kinegen_interval r102 = kinegen_iv_add(r101, r100);
+    const kinegen_interval r103 = kinegen_iv_mul(r102, r5);
+    const kinegen_interval r104 = kinegen_iv_const(8.0, 8.0);
+    const kinegen_interval r105 = kinegen_iv_mul(r104, r103);
+    const kinegen_interval r106 = kinegen_iv_neg(r63);
+    const kinegen_interval r107 = kinegen_iv_add(r101, r106);
     const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
-    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
-    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
-    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
-    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
-    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
-    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
-    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
-    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
-    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
-    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
-    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
-    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
-    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
-    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
-    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
-    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
-    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
-    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
-    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
-    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
-    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
-    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
-    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
-    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
-    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
-    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
-    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
-    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
-    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
-    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
-    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
-    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
-    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
-    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
-    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    const kinegen_interval r109 = kinegen_iv_const(-8.0, -8.0);
+    const kinegen_interval r110 = kinegen_iv_mul(r109, r108);
+    const kinegen_interval r111 = kinegen_iv_add(r105, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r11, r111);
+    const kinegen_interval r113 = kinegen_iv_neg(r68);
+    const kinegen_interval r114 = kinegen_iv_add(r101, r113);
+    const kinegen_interval r115 = kinegen_iv_mul(r114, r15);
+    const kinegen_interval r116 = kinegen_iv_const(1.5999999999999999, 1.6000000000000003);
+    const kinegen_interval r117 = kinegen_iv_mul(r116, r115);
+    const kinegen_interval r118 = kinegen_iv_neg(r71);
+    const kinegen_interval r119 = kinegen_iv_add(r101, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r119, r20);
+    const kinegen_interval r121 = kinegen_iv_const(-3.4000000000000004, -3.3999999999999995);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r120);
+    const kinegen_interval r123 = kinegen_iv_neg(r74);
+    const kinegen_interval r124 = kinegen_iv_add(r101, r123);
+    const kinegen_interval r125 = kinegen_iv_mul(r124, r25);
+    const kinegen_interval r126 = kinegen_iv_const(1.7999999999999998, 1.8000000000000003);
+    const kinegen_interval r127 = kinegen_iv_mul(r126, r125);
+    const kinegen_interval r128 = kinegen_iv_add(r117, r122);
+    const kinegen_interval r129 = kinegen_iv_add(r128, r127);
+    const kinegen_interval r130 = kinegen_iv_const(1.3999999999999997, 1.4000000000000001);
+    const kinegen_interval r131 = kinegen_iv_mul(r130, r115);
+    const kinegen_interval r132 = kinegen_iv_neg(r81);
+    const kinegen_interval r133 = kinegen_iv_add(r101, r132);
+    const kinegen_interval r134 = kinegen_iv_mul(r133, r36);
+    const kinegen_interval r135 = kinegen_iv_const(3.3999999999999995, 3.4000000000000004);
+    const kinegen_interval r136 = kinegen_iv_mul(r135, r134);
+    const kinegen_interval r137 = kinegen_iv_neg(r84);
+    const kinegen_interval r138 = kinegen_iv_add(r101, r137);
+    const kinegen_interval r139 = kinegen_iv_mul(r138, r41);
+    const kinegen_interval r140 = kinegen_iv_mul(r23, r139);
+    const kinegen_interval r141 = kinegen_iv_const(-1.8000000000000003, -1.7999999999999998);
+    const kinegen_interval r142 = kinegen_iv_mul(r141, r125);
+    const kinegen_interval r143 = kinegen_iv_add(r131, r136);
+    const kinegen_interval r144 = kinegen_iv_add(r143, r140);
+    const kinegen_interval r145 = kinegen_iv_add(r144, r142);
+    const kinegen_interval r146 = kinegen_iv_const(-0.4000000000000001, -0.39999999999999997);
+    const kinegen_interval r147 = kinegen_iv_mul(r146, r115);
+    const kinegen_interval r148 = kinegen_iv_const(3.0, 3.0);
+    const kinegen_interval r149 = kinegen_iv_mul(r148, r134);
+    const kinegen_interval r150 = kinegen_iv_const(-2.6000000000000005, -2.5999999999999996);
+    const kinegen_interval r151 = kinegen_iv_mul(r150, r139);
+    const kinegen_interval r152 = kinegen_iv_add(r147, r149);
+    const kinegen_interval r153 = kinegen_iv_add(r152, r151);
     out[0] = r12.lo;
     out[12] = r12.hi;
     out[1] = r31.lo;
@@ -3297,14 +3307,14 @@ void excavator_dual_quaternion_compute_input_ranges_digging(const double *span, 
     out[18] = r91.hi;
     out[7] = r99.lo;
     out[19] = r99.hi;
-    out[8] = r111.lo;
-    out[20] = r111.hi;
-    out[9] = r125.lo;
-    out[21] = r125.hi;
-    out[10] = r138.lo;
-    out[22] = r138.hi;
-    out[11] = r143.lo;
-    out[23] = r143.hi;
+    out[8] = r112.lo;
+    out[20] = r112.hi;
+    out[9] = r129.lo;
+    out[21] = r129.hi;
+    out[10] = r145.lo;
+    out[22] = r145.hi;
+    out[11] = r153.lo;
+    out[23] = r153.hi;
 }
 
 /* Phi of the driver rows of case 'level_cut'. */
@@ -3996,6 +4006,10 @@ void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q,
     out[3] = ud3;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
+
 /* gamma of the driver rows of case 'bucket_toggle'. */
 void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
@@ -4157,10 +4171,6 @@ void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double 
     out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
     out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_dual_quaternion_compute_inputs_bucket_toggle(double t, double *out) {
@@ -5538,10 +5548,10 @@ void excavator_dual_quaternion_compute_inputs_digging_fast(double t, double *out
     const double c14 = (9.0/16.0)*c13;
     const double c15 = (c8*c8);
     const double c16 = (c7*c7);
-    const double c17 = c5*(5.0 - 5.0*c11);
-    const double c18 = (9.0/16.0)*c3*(5.0 - 5.0*c13);
-    const double c19 = c8*(5.0 - 5.0*c15);
-    const double c20 = c7*(5.0 - 5.0*c16);
+    const double c17 = c5*(1.0 - c11);
+    const double c18 = (45.0/16.0)*c3*(1.0 - c13);
+    const double c19 = c8*(1.0 - c15);
+    const double c20 = c7*(1.0 - c16);
     out[0] = 0.7853981633974483*(-c2 + c1);
     out[1] = 626973.0/250000.0 - 17.0/40.0*c6 + (1.0/5.0)*c5 + c4;
     out[2] = 485803.0/250000.0 - c4 - 3.0/8.0*c8 + (7.0/40.0)*c5 + (17.0/40.0)*c7;
@@ -5550,10 +5560,10 @@ void excavator_dual_quaternion_compute_inputs_digging_fast(double t, double *out
     out[5] = c14 - 17.0/16.0*c12 + (1.0/2.0)*c11;
     out[6] = (17.0/16.0)*c16 + (7.0/16.0)*c11 - c14 - 15.0/16.0*c15;
     out[7] = (15.0/16.0)*c16 - 1.0/8.0*c11 - 13.0/16.0*c15;
-    out[8] = 0.7853981633974483*(-5.0/2.0*c1*(5.0 - 5.0*c10) + (5.0/2.0)*c2*(5.0 - 5.0*c9));
-    out[9] = -c18 + (17.0/16.0)*c6*(5.0 - 5.0*c12) - 1.0/2.0*c17;
-    out[10] = -17.0/16.0*c20 - 7.0/16.0*c17 + c18 + (15.0/16.0)*c19;
-    out[11] = -15.0/16.0*c20 + (1.0/8.0)*c17 + (13.0/16.0)*c19;
+    out[8] = 0.7853981633974483*(-25.0/2.0*c1*(1.0 - c10) + (25.0/2.0)*c2*(1.0 - c9));
+    out[9] = -c18 - 5.0/2.0*c17 + (85.0/16.0)*c6*(1.0 - c12);
+    out[10] = -85.0/16.0*c20 - 35.0/16.0*c17 + c18 + (75.0/16.0)*c19;
+    out[11] = -75.0/16.0*c20 + (5.0/8.0)*c17 + (65.0/16.0)*c19;
 }
 
 /* Enclosures of the driver inputs of case 'digging_fast' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
@@ -5658,50 +5668,60 @@ void excavator_dual_quaternion_compute_input_ranges_digging_fast(const double *s
     const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
     const kinegen_interval r98 = kinegen_iv_add(r93, r95);
     const kinegen_interval r99 = kinegen_iv_add(r98, r97);
-    const kinegen_interval r100 = kinegen_iv_const(-5.0, -5.0);
-    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
-    const kinegen_interval r102 = kinegen_iv_const(5.0, 5.0);
-    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
-    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
-    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
-    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
-    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r100 = kinegen_iv_neg(r61);
+    const kinegen_interval r101 = kinegen_iv_const(1.0, 1.0);
+    const kinegen_interval r102 = kinegen_iv_add(r101, r100);
+    const kinegen_interval r103 = kinegen_iv_mul(r102, r5);
+    const kinegen_interval r104 = kinegen_iv_const(12.5, 12.5);
+    const kinegen_interval r105 = kinegen_iv_mul(r104, r103);
+    const kinegen_interval r106 = kinegen_iv_neg(r63);
+    const kinegen_interval r107 = kinegen_iv_add(r101, r106);
     const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
-    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
-    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
-    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
-    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
-    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
-    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
-    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
-    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
-    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
-    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
-    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
-    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
-    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
-    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
-    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
-    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
-    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
-    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
-    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
-    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
-    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
-    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
-    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
-    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
-    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
-    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
-    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
-    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
-    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
-    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
-    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
-    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
-    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
-    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
-    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    const kinegen_interval r109 = kinegen_iv_const(-12.5, -12.5);
+    const kinegen_interval r110 = kinegen_iv_mul(r109, r108);
+    const kinegen_interval r111 = kinegen_iv_add(r105, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r11, r111);
+    const kinegen_interval r113 = kinegen_iv_neg(r68);
+    const kinegen_interval r114 = kinegen_iv_add(r101, r113);
+    const kinegen_interval r115 = kinegen_iv_mul(r114, r15);
+    const kinegen_interval r116 = kinegen_iv_mul(r1, r115);
+    const kinegen_interval r117 = kinegen_iv_neg(r71);
+    const kinegen_interval r118 = kinegen_iv_add(r101, r117);
+    const kinegen_interval r119 = kinegen_iv_mul(r118, r20);
+    const kinegen_interval r120 = kinegen_iv_const(-5.3125, -5.3125);
+    const kinegen_interval r121 = kinegen_iv_mul(r120, r119);
+    const kinegen_interval r122 = kinegen_iv_neg(r74);
+    const kinegen_interval r123 = kinegen_iv_add(r101, r122);
+    const kinegen_interval r124 = kinegen_iv_mul(r123, r25);
+    const kinegen_interval r125 = kinegen_iv_const(2.8125, 2.8125);
+    const kinegen_interval r126 = kinegen_iv_mul(r125, r124);
+    const kinegen_interval r127 = kinegen_iv_add(r116, r121);
+    const kinegen_interval r128 = kinegen_iv_add(r127, r126);
+    const kinegen_interval r129 = kinegen_iv_const(2.1875, 2.1875);
+    const kinegen_interval r130 = kinegen_iv_mul(r129, r115);
+    const kinegen_interval r131 = kinegen_iv_neg(r81);
+    const kinegen_interval r132 = kinegen_iv_add(r101, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r36);
+    const kinegen_interval r134 = kinegen_iv_const(5.3125, 5.3125);
+    const kinegen_interval r135 = kinegen_iv_mul(r134, r133);
+    const kinegen_interval r136 = kinegen_iv_neg(r84);
+    const kinegen_interval r137 = kinegen_iv_add(r101, r136);
+    const kinegen_interval r138 = kinegen_iv_mul(r137, r41);
+    const kinegen_interval r139 = kinegen_iv_const(-4.6875, -4.6875);
+    const kinegen_interval r140 = kinegen_iv_mul(r139, r138);
+    const kinegen_interval r141 = kinegen_iv_const(-2.8125, -2.8125);
+    const kinegen_interval r142 = kinegen_iv_mul(r141, r124);
+    const kinegen_interval r143 = kinegen_iv_add(r130, r135);
+    const kinegen_interval r144 = kinegen_iv_add(r143, r140);
+    const kinegen_interval r145 = kinegen_iv_add(r144, r142);
+    const kinegen_interval r146 = kinegen_iv_const(-0.625, -0.625);
+    const kinegen_interval r147 = kinegen_iv_mul(r146, r115);
+    const kinegen_interval r148 = kinegen_iv_const(4.6875, 4.6875);
+    const kinegen_interval r149 = kinegen_iv_mul(r148, r133);
+    const kinegen_interval r150 = kinegen_iv_const(-4.0625, -4.0625);
+    const kinegen_interval r151 = kinegen_iv_mul(r150, r138);
+    const kinegen_interval r152 = kinegen_iv_add(r147, r149);
+    const kinegen_interval r153 = kinegen_iv_add(r152, r151);
     out[0] = r12.lo;
     out[12] = r12.hi;
     out[1] = r31.lo;
@@ -5718,14 +5738,14 @@ void excavator_dual_quaternion_compute_input_ranges_digging_fast(const double *s
     out[18] = r91.hi;
     out[7] = r99.lo;
     out[19] = r99.hi;
-    out[8] = r111.lo;
-    out[20] = r111.hi;
-    out[9] = r125.lo;
-    out[21] = r125.hi;
-    out[10] = r138.lo;
-    out[22] = r138.hi;
-    out[11] = r143.lo;
-    out[23] = r143.hi;
+    out[8] = r112.lo;
+    out[20] = r112.hi;
+    out[9] = r128.lo;
+    out[21] = r128.hi;
+    out[10] = r145.lo;
+    out[22] = r145.hi;
+    out[11] = r153.lo;
+    out[23] = r153.hi;
 }
 
 /* Phi of the driver rows of case 'digging_paced'. */
@@ -5963,6 +5983,10 @@ void excavator_dual_quaternion_compute_drivers_nu_digging_paced(const double *q,
     out[3] = ud3;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
+
 /* gamma of the driver rows of case 'digging_paced'. */
 void excavator_dual_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
@@ -6144,10 +6168,10 @@ void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *ou
     const double c14 = (9.0/70.0)*c13;
     const double c15 = (c8*c8);
     const double c16 = (c7*c7);
-    const double c17 = c5*(8.0/7.0 - 8.0/7.0*c12);
-    const double c18 = (9.0/70.0)*c3*(8.0/7.0 - 8.0/7.0*c13);
-    const double c19 = c8*(8.0/7.0 - 8.0/7.0*c15);
-    const double c20 = c7*(8.0/7.0 - 8.0/7.0*c16);
+    const double c17 = c5*(1.0 - c12);
+    const double c18 = (36.0/245.0)*c3*(1.0 - c13);
+    const double c19 = c8*(1.0 - c15);
+    const double c20 = c7*(1.0 - c16);
     out[0] = 0.7853981633974483*(-c2 + c1);
     out[1] = 626973.0/250000.0 - 17.0/40.0*c6 + (1.0/5.0)*c5 + c4;
     out[2] = 485803.0/250000.0 - c4 - 3.0/8.0*c8 + (7.0/40.0)*c5 + (17.0/40.0)*c7;
@@ -6156,15 +6180,11 @@ void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *ou
     out[5] = c14 + (4.0/35.0)*c12 - 17.0/70.0*c11;
     out[6] = (17.0/70.0)*c16 + (1.0/10.0)*c12 - 3.0/14.0*c15 - c14;
     out[7] = (3.0/14.0)*c16 - 1.0/35.0*c12 - 13.0/70.0*c15;
-    out[8] = 0.7853981633974483*(-4.0/7.0*c1*(8.0/7.0 - 8.0/7.0*c10) + (4.0/7.0)*c2*(8.0/7.0 - 8.0/7.0*c9));
-    out[9] = -c18 - 4.0/35.0*c17 + (17.0/70.0)*c6*(8.0/7.0 - 8.0/7.0*c11);
-    out[10] = -17.0/70.0*c20 - 1.0/10.0*c17 + (3.0/14.0)*c19 + c18;
-    out[11] = -3.0/14.0*c20 + (1.0/35.0)*c17 + (13.0/70.0)*c19;
+    out[8] = 0.7853981633974483*(-32.0/49.0*c1*(1.0 - c10) + (32.0/49.0)*c2*(1.0 - c9));
+    out[9] = -c18 - 32.0/245.0*c17 + (68.0/245.0)*c6*(1.0 - c11);
+    out[10] = -68.0/245.0*c20 - 4.0/35.0*c17 + (12.0/49.0)*c19 + c18;
+    out[11] = -12.0/49.0*c20 + (8.0/245.0)*c17 + (52.0/245.0)*c19;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
 void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *span, double *out) {
@@ -6268,50 +6288,60 @@ void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *
     const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
     const kinegen_interval r98 = kinegen_iv_add(r93, r95);
     const kinegen_interval r99 = kinegen_iv_add(r98, r97);
-    const kinegen_interval r100 = kinegen_iv_const(-1.142857142857143, -1.1428571428571426);
-    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
-    const kinegen_interval r102 = kinegen_iv_const(1.1428571428571426, 1.142857142857143);
-    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
-    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
-    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
-    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
-    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r100 = kinegen_iv_neg(r61);
+    const kinegen_interval r101 = kinegen_iv_const(1.0, 1.0);
+    const kinegen_interval r102 = kinegen_iv_add(r101, r100);
+    const kinegen_interval r103 = kinegen_iv_mul(r102, r5);
+    const kinegen_interval r104 = kinegen_iv_const(0.6530612244897958, 0.653061224489796);
+    const kinegen_interval r105 = kinegen_iv_mul(r104, r103);
+    const kinegen_interval r106 = kinegen_iv_neg(r63);
+    const kinegen_interval r107 = kinegen_iv_add(r101, r106);
     const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
-    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
-    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
-    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
-    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
-    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
-    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
-    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
-    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
-    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
-    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
-    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
-    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
-    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
-    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
-    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
-    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
-    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
-    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
-    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
-    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
-    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
-    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
-    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
-    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
-    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
-    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
-    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
-    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
-    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
-    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
-    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
-    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
-    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
-    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
-    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    const kinegen_interval r109 = kinegen_iv_const(-0.653061224489796, -0.6530612244897958);
+    const kinegen_interval r110 = kinegen_iv_mul(r109, r108);
+    const kinegen_interval r111 = kinegen_iv_add(r105, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r11, r111);
+    const kinegen_interval r113 = kinegen_iv_neg(r68);
+    const kinegen_interval r114 = kinegen_iv_add(r101, r113);
+    const kinegen_interval r115 = kinegen_iv_mul(r114, r15);
+    const kinegen_interval r116 = kinegen_iv_const(0.13061224489795917, 0.13061224489795922);
+    const kinegen_interval r117 = kinegen_iv_mul(r116, r115);
+    const kinegen_interval r118 = kinegen_iv_neg(r71);
+    const kinegen_interval r119 = kinegen_iv_add(r101, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r119, r20);
+    const kinegen_interval r121 = kinegen_iv_const(-0.2775510204081633, -0.2775510204081632);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r120);
+    const kinegen_interval r123 = kinegen_iv_neg(r74);
+    const kinegen_interval r124 = kinegen_iv_add(r101, r123);
+    const kinegen_interval r125 = kinegen_iv_mul(r124, r25);
+    const kinegen_interval r126 = kinegen_iv_const(0.14693877551020407, 0.14693877551020412);
+    const kinegen_interval r127 = kinegen_iv_mul(r126, r125);
+    const kinegen_interval r128 = kinegen_iv_add(r117, r122);
+    const kinegen_interval r129 = kinegen_iv_add(r128, r127);
+    const kinegen_interval r130 = kinegen_iv_mul(r69, r115);
+    const kinegen_interval r131 = kinegen_iv_neg(r81);
+    const kinegen_interval r132 = kinegen_iv_add(r101, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r36);
+    const kinegen_interval r134 = kinegen_iv_const(0.2775510204081632, 0.2775510204081633);
+    const kinegen_interval r135 = kinegen_iv_mul(r134, r133);
+    const kinegen_interval r136 = kinegen_iv_neg(r84);
+    const kinegen_interval r137 = kinegen_iv_add(r101, r136);
+    const kinegen_interval r138 = kinegen_iv_mul(r137, r41);
+    const kinegen_interval r139 = kinegen_iv_const(-0.2448979591836735, -0.24489795918367344);
+    const kinegen_interval r140 = kinegen_iv_mul(r139, r138);
+    const kinegen_interval r141 = kinegen_iv_const(-0.14693877551020412, -0.14693877551020407);
+    const kinegen_interval r142 = kinegen_iv_mul(r141, r125);
+    const kinegen_interval r143 = kinegen_iv_add(r130, r135);
+    const kinegen_interval r144 = kinegen_iv_add(r143, r140);
+    const kinegen_interval r145 = kinegen_iv_add(r144, r142);
+    const kinegen_interval r146 = kinegen_iv_const(-0.032653061224489806, -0.03265306122448979);
+    const kinegen_interval r147 = kinegen_iv_mul(r146, r115);
+    const kinegen_interval r148 = kinegen_iv_const(0.24489795918367344, 0.2448979591836735);
+    const kinegen_interval r149 = kinegen_iv_mul(r148, r133);
+    const kinegen_interval r150 = kinegen_iv_const(-0.2122448979591837, -0.21224489795918364);
+    const kinegen_interval r151 = kinegen_iv_mul(r150, r138);
+    const kinegen_interval r152 = kinegen_iv_add(r147, r149);
+    const kinegen_interval r153 = kinegen_iv_add(r152, r151);
     out[0] = r12.lo;
     out[12] = r12.hi;
     out[1] = r31.lo;
@@ -6328,14 +6358,14 @@ void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *
     out[18] = r91.hi;
     out[7] = r99.lo;
     out[19] = r99.hi;
-    out[8] = r111.lo;
-    out[20] = r111.hi;
-    out[9] = r125.lo;
-    out[21] = r125.hi;
-    out[10] = r138.lo;
-    out[22] = r138.hi;
-    out[11] = r143.lo;
-    out[23] = r143.hi;
+    out[8] = r112.lo;
+    out[20] = r112.hi;
+    out[9] = r129.lo;
+    out[21] = r129.hi;
+    out[10] = r145.lo;
+    out[22] = r145.hi;
+    out[11] = r153.lo;
+    out[23] = r153.hi;
 }
 
 /* Phi of the driver rows of case 'oscillation'. */

@@ -428,7 +428,8 @@ def test_a_planted_or_foreign_version_module_is_refused(built, tmp_path):
 
 
 def test_a_module_rebuilt_at_once_is_the_new_one(tmp_path):
-    """No bytecode cache: a module replaced within the same second by one of the same size runs as written."""
+    """No time stamps: a module replaced within the same second by one of the same size runs as written
+    (its code is kept by its source's digest, never beside it in __pycache__)."""
     folder = tmp_path / "generated"
     first, second = tmp_path / "one" / "m.yaml", tmp_path / "two" / "m.yaml"
     for path, length in ((first, "0.3"), (second, "0.4")):
@@ -440,6 +441,32 @@ def test_a_module_rebuilt_at_once_is_the_new_one(tmp_path):
     after = load_module(module_path, second)
     assert before.SOURCE_SHA256 != after.SOURCE_SHA256 == hashlib.sha256(second.read_bytes()).hexdigest()
     assert not list(folder.glob("__pycache__"))
+
+
+def test_a_modules_kept_code_runs_only_when_kinegen_wrote_it(built, tmp_path, monkeypatch):
+    """A module's code, compiled once, is kept in the cache and loaded without compiling, under the
+    module's own file name; planted code (doing something else) or truncated code in its place is
+    never loaded: the verified source is compiled again and its code kept anew."""
+    import marshal
+
+    from kinegen.runtime import bytecode
+
+    model, path = built
+    load_module(path, model)  # compiled (or loaded, if kept already under this trust store)
+    kept = bytecode._path(path.read_text())
+    assert integrity.trusted(kept.read_bytes())
+    compiled = []
+    monkeypatch.setattr(bytecode, "compile", lambda *a: compiled.append(a[1]) or compile(*a), raising=False)
+    module = load_module(path, model)
+    assert compiled == [] and module.MODEL == "four_bar"
+    assert {f.__code__.co_filename for f in vars(module).values() if callable(f) and hasattr(f, "__code__")} == {str(path)}
+    planted = marshal.dumps([compile(f"open({str(tmp_path / 'RAN')!r}, 'w')\nMODEL = 'x'\n", str(path), "exec")])
+    for damaged in (planted, kept.read_bytes()[:1000]):
+        kept.write_bytes(damaged)
+        compiled.clear()
+        again = load_module(path, model)
+        assert again.MODEL == "four_bar" and len(compiled) == len(bytecode.parts(path.read_text())) > 1
+        assert integrity.trusted(kept.read_bytes()) and not (tmp_path / "RAN").exists()
 
 
 @needs_cc

@@ -13,6 +13,7 @@ import functools
 import math
 from collections.abc import Mapping
 
+import symengine as se
 import sympy as sp
 
 from kinegen.errors import ExpressionError, shown
@@ -128,6 +129,8 @@ def time_derivative(function: sp.Expr) -> sp.Expr:
     taken as the one on either side, 0 at the kink itself as ``sign(0) = 0``). A function is
     real wherever it is valid, so the real and imaginary parts SymPy keeps for the derivative
     of ``abs`` of an expression it cannot prove real are the expression and 0."""
+    if _smooth(function):
+        return _engine_derivative(function)
     derivative = sp.diff(function, T)
     if derivative.has(sp.DiracDelta):
         derivative = derivative.replace(sp.DiracDelta, lambda *_: sp.Integer(0))
@@ -135,6 +138,25 @@ def time_derivative(function: sp.Expr) -> sp.Expr:
         derivative = derivative.replace(sp.re, lambda x: x).replace(sp.im, lambda x: sp.Integer(0))
         derivative = derivative.replace(sp.conjugate, lambda x: x)  # real where f is (elsewhere: nan, refused)
     return derivative
+
+
+#: Functions whose derivatives SymEngine and SymPy agree on everywhere they are defined (no ``abs``, no
+#: inverse functions with their domains' ``re``/``im`` parts): a time function of only these is derived by SymEngine.
+_SMOOTH = (sp.sin, sp.cos, sp.tan, sp.sinh, sp.cosh, sp.tanh, sp.exp, sp.log)
+
+
+def _smooth(function: sp.Expr) -> bool:
+    return all(
+        isinstance(node, (sp.Add, sp.Mul, sp.Pow, sp.Symbol, sp.Number, sp.NumberSymbol, *_SMOOTH)) for node in sp.preorder_traversal(function)
+    )
+
+
+def _engine_derivative(function: sp.Expr) -> sp.Expr:
+    """d/dt of ``function`` by SymEngine (~4 times faster than SymPy's on a driver's tanh ramps: its
+    assumptions), back in SymPy (evaluated, so in SymPy's canonical form) with the function's own symbols."""
+    names = {s.name: s for s in function.free_symbols}
+    derivative = sp.sympify(se.sympify(function).diff(se.Symbol(T.name)))
+    return derivative.xreplace({s: names[s.name] for s in derivative.free_symbols if s.name in names})
 
 
 def parse(
