@@ -3,6 +3,7 @@ from the wheel in a folder that is not a clone (no models/, no generated/ there)
 
 from __future__ import annotations
 
+import hashlib
 import os
 import subprocess
 import sys
@@ -84,7 +85,7 @@ def test_the_installed_package_finds_its_models_and_solves_outside_a_clone(wheel
     assert len(rows) > 10 and not (work / "models").exists() and not (work / "generated").exists()
     # the main job's modules travel with the wheel: placed in out/generated and loaded as they are, not built
     # again (a fresh trust store: the runtime trusts them as kinegen's own because the installed package ships them)
-    env["KINEGEN_TRUST"] = str(tmp_path / "trust")
+    env["KINEGEN_TRUST"], env["KINEGEN_CACHE"] = str(tmp_path / "trust"), str(tmp_path / "cache")
     placed = python(
         "from pathlib import Path; from kinegen.examples import place_shipped_modules; from kinegen.api import Session\n"
         "out = Path('out/shipped'); n = place_shipped_modules(out)\n"
@@ -94,8 +95,11 @@ def test_the_installed_package_finds_its_models_and_solves_outside_a_clone(wheel
     shipped = sorted(p.name for p in (ROOT / "generated").iterdir() if p.suffix in (".py", ".c", ".h"))
     assert int(placed[0]) == len(shipped) and Path(placed[1]).name == "excavator_quaternion.py"
     assert (work / "out" / "shipped" / "excavator_quaternion.py").read_bytes() == (ROOT / "generated" / "excavator_quaternion.py").read_bytes()
-    # nothing built or verified by building it again: either would have written to the trust store
-    assert not (tmp_path / "trust").exists() or not any(p.is_file() for p in (tmp_path / "trust").rglob("*"))
+    # nothing built or verified by building it again: either would have recorded the module's digest (or what a
+    # build writes) in the trust store; the store holds only the digest of the module's compiled code, kept in the cache
+    recorded = {p.name for p in (tmp_path / "trust").rglob("*") if p.is_file() and not p.name.startswith(".")}
+    kept = {hashlib.sha256(p.read_bytes()).hexdigest() for p in (tmp_path / "cache" / "bytecode").rglob("*.marshal")}
+    assert recorded == kept and len(kept) == 1
 
 
 def test_the_main_job_finds_the_models_of_the_clone_or_says_where_they_must_be(tmp_path, monkeypatch, capsys):
