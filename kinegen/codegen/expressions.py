@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sympy as sp
+from sympy.printing.precedence import precedence
 
 
 def freeze_numbers(expr: sp.Expr) -> sp.Expr:
@@ -15,3 +16,19 @@ def freeze_numbers(expr: sp.Expr) -> sp.Expr:
         return isinstance(e, sp.Expr) and e.is_number and not e.is_Rational and not e.is_Float
 
     return expr.replace(is_constant, lambda e: sp.Float(float(sp.N(e, 30))))
+
+
+class PrecedenceOnce:
+    """A printer mixin: SymPy's ``parenthesize`` with each expression's precedence computed once and
+    kept (SymPy's asks for it up to twice per call, a product's each time through
+    ``could_extract_minus_sign``: ~a quarter of printing the excavator's kernels). The same text:
+    the precedence of an expression is a function of the expression."""
+
+    def parenthesize(self, item: sp.Basic, level: int, strict: bool = False) -> str:
+        known = self.__dict__.setdefault("_precedences", {})
+        value = known.get(item)
+        if value is None:
+            value = known[item] = precedence(item)
+        if value < level or (not strict and value <= level):
+            return f"({self._print(item)})"
+        return self._print(item)

@@ -123,12 +123,15 @@ def to_sympy(
         out = to_sympy(next(a for a in expr.args if a in conditions), symbols, memo, conditions)
     else:
         args = [to_sympy(a, symbols, memo, conditions) for a in expr.args]
+        # sums, products and powers as SymPy's ``evaluate=False`` constructors make them, without their
+        # checks and cache (~half of the conversion): the arguments are SymPy expressions, none a matrix
         if isinstance(expr, se.Add):
-            out = sp.Add(*args, evaluate=False)
+            out = sp.Add._from_args(args)
         elif isinstance(expr, se.Mul):
-            out = sp.Mul(*args, evaluate=False)
+            out = sp.Mul._from_args(args)
         elif isinstance(expr, se.Pow):
-            out = sp.Pow(*args, evaluate=False)
+            out = sp.Expr.__new__(sp.Pow, *args)
+            out.is_commutative = args[0].is_commutative and args[1].is_commutative
         elif isinstance(expr, se.Piecewise):
             out = sp.Piecewise(*zip(args[::2], args[1::2]))
         else:  # a function, a relation: SymPy's own conversion, then the caller's symbols

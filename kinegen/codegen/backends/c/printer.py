@@ -7,8 +7,10 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
+from kinegen.codegen.expressions import PrecedenceOnce
 
-class CPrinter(C99CodePrinter):
+
+class CPrinter(PrecedenceOnce, C99CodePrinter):
     """Doubles only. Small rationals as ``p.0/q.0`` (folded by the compiler to the correctly
     rounded double, as Python folds ``p/q``), others as their nearest double; squares of names
     as products (``(x*x)``: exact, as the Python printer writes them); ``x**-1/2`` as

@@ -8,6 +8,8 @@ import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.pycode import PythonCodePrinter
 
+from kinegen.codegen.expressions import PrecedenceOnce
+
 #: NumPy names a generated module may import (scalars and arrays alike).
 NUMPY_NAMES = (
     "abs", "arccos", "arcsin", "arctan", "arctan2", "cos", "cosh", "exp", "log",
@@ -15,7 +17,7 @@ NUMPY_NAMES = (
 )  # fmt: skip
 
 
-class ModulePrinter(NumPyPrinter):
+class ModulePrinter(PrecedenceOnce, NumPyPrinter):
     """NumPy printer with bare function names and round-trip float literals."""
 
     def __init__(self) -> None:
@@ -28,7 +30,7 @@ class ModulePrinter(NumPyPrinter):
         return _rational(self, expr, NumPyPrinter)
 
 
-class ScalarPrinter(PythonCodePrinter):
+class ScalarPrinter(PrecedenceOnce, PythonCodePrinter):
     """Plain Python with ``math.<function>`` and round-trip float literals (one configuration).
 
     Integer coefficients are printed as floats (``2.0*x``: CPython multiplies two floats
