@@ -696,7 +696,7 @@ def describe(
     design_symbols = tuple(d.symbol for d in model.design)
     sensitive = bool(model.design) and sensitivities
     joint_sensitivity: dict[str, list] = {}
-    derived = _Sensitivities(coords, design_symbols)
+    derived = _Sensitivities(coords, design_symbols) if sensitive else None
     if sensitive:  # the joint rows' parts of the sensitivity kernels, common to every case
         joint_sensitivity["phi_p"] = derived.design_derivatives(joints)
         joint_sensitivity["dvel"], joint_sensitivity["dacc"] = derived.rows(joints)
