@@ -43,6 +43,9 @@ def _serve(connection, limit: int, work: Path) -> None:
     import resource
 
     warnings.simplefilter("ignore")
+    # what the checks compile (the modules' code, kinegen.runtime.bytecode) is kept in the worker's folder,
+    # removed with it: thousands of fuzzed modules are not the user's cache
+    os.environ["KINEGEN_CACHE"] = str(work / "cache")
     from kinegen.codegen import generate_source
     from kinegen.errors import KinegenError, ModelError
     from kinegen.model import load
