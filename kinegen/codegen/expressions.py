@@ -20,9 +20,18 @@ def freeze_numbers(expr: sp.Expr) -> sp.Expr:
 
 class PrecedenceOnce:
     """A printer mixin: SymPy's ``parenthesize`` with each expression's precedence computed once and
-    kept (SymPy's asks for it up to twice per call, a product's each time through
-    ``could_extract_minus_sign``: ~a quarter of printing the excavator's kernels). The same text:
-    the precedence of an expression is a function of the expression."""
+    kept until :meth:`forget` (SymPy's asks for it up to twice per call, a product's each time
+    through ``could_extract_minus_sign``: ~a quarter of printing the excavator's kernels). The same
+    text: the precedence of an expression is a function of the expression. ``doprint`` forgets
+    first, and so does :class:`kinegen.codegen.shapes.Shapes` before each group's statements: a
+    printer kept for the process does not keep every expression it printed alive."""
+
+    def forget(self) -> None:
+        self.__dict__["_precedences"] = {}
+
+    def doprint(self, expr: sp.Basic, assign_to: object = None) -> str:
+        self.forget()
+        return super().doprint(expr, assign_to)
 
     def parenthesize(self, item: sp.Basic, level: int, strict: bool = False) -> str:
         known = self.__dict__.setdefault("_precedences", {})

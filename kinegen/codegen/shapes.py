@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 from sympy.printing.codeprinter import CodePrinter
 
-from kinegen.codegen.expressions import freeze_numbers
+from kinegen.codegen.expressions import PrecedenceOnce, freeze_numbers
 from kinegen.symbolic import engine
 from kinegen.symbolic.assembly import GENERIC_NAME
 
@@ -201,6 +201,8 @@ class Shapes:
         statements = self.statements(group)
         identity = self._identity(group)
         for printer in printers:
+            if isinstance(printer, PrecedenceOnce):
+                printer.forget()  # the precedences kept while this group is printed
             temporaries = [code(printer, v) for _, v in statements.temporaries]
             outputs = [None if e == 0 else code(printer, e) for e in statements.outputs]
             self._texts[_kind(printer), identity] = (temporaries, outputs)
