@@ -427,24 +427,29 @@ class _Sensitivities:
             m_v = self._tangent(velocity, bodies)
             n_a = {c: d for c in velocities for d in [acceleration.diff(v[c])] if d != 0}
         else:
-            # a joint or a normalization (no time dependence): gamma is exactly -D_q(Phi_q v) v, so from the
-            # second derivatives H[c][k] = D_k(Phi_q[c]), M_v[k] = sum_c H[c][k] v_c and, as Phi_q a - gamma =
-            # Phi_q a + sum_ck H[c][k] v_c v_k, N_a[j] = sum_k H[j][k] v_k + sum_c H[c][j] v_c (cheaper than
-            # differentiating gamma by every velocity coordinate: a third of the derivation)
-            second = {c: self._tangent(jacobian[c], bodies) for c in columns}
-            m_v = {k: total for k in velocities for total in [se.Add(*(second[c][k] * v[c] for c in columns if k in second[c]))]
-                   if total != 0}  # fmt: skip
-            n_a = {}
-            for j in velocities:
-                total = se.Add(*(e * v[k] for k, e in second.get(j, {}).items()), *(second[c][j] * v[c] for c in columns if j in second[c]))
-                if total != 0:
-                    n_a[j] = total
+            m_v, n_a = self._joint_rates(jacobian, velocities, bodies)
         dvel = [*sorted(m_v.items()), *((n + k, d) for k, d in self._by_design(velocity))]
         dacc = [
             *sorted(self._tangent(acceleration, bodies).items()), *((n + c, d) for c, d in sorted(n_a.items())),
             *((2 * n + k, d) for k, d in self._by_design(acceleration)),
         ]  # fmt: skip
         return dvel, dacc
+
+    def _joint_rates(self, jacobian: dict[int, se.Basic], velocities: list[int], bodies: list) -> tuple[dict, dict]:
+        """M_v = D_q(Phi_q v) and N_a = d(Phi_q a - gamma)/dv of a row without time dependence (a joint
+        or a normalization), whose gamma is exactly -D_q(Phi_q v) v: from the second derivatives
+        H[c][k] = D_k(Phi_q[c]) (one tangent derivative of each Jacobian entry), M_v[k] = sum_c H[c][k] v_c
+        and, as Phi_q a - gamma = Phi_q a + sum_ck H[c][k] v_c v_k, N_a[j] = sum_k H[j][k] v_k + sum_c H[c][j] v_c.
+        Cheaper than differentiating gamma by every velocity coordinate (a third of the derivation)."""
+        v = self._v
+        second = {c: self._tangent(e, bodies) for c, e in jacobian.items()}
+        m_v = {k: total for k in velocities for total in [se.Add(*(h[k] * v[c] for c, h in second.items() if k in h))] if total != 0}
+        n_a = {}
+        for j in velocities:
+            total = se.Add(*(e * v[k] for k, e in second.get(j, {}).items()), *(h[j] * v[c] for c, h in second.items() if j in h))
+            if total != 0:
+                n_a[j] = total
+        return m_v, n_a
 
 
 def _entry_groups(rows: list[Row], entries: list[list[tuple[int, se.Basic]]], key: tuple, symbols: dict[str, sp.Symbol]) -> tuple[Group, ...]:
