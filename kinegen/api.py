@@ -44,11 +44,13 @@ class Session:
     ``announce``: called with one line when a module is (re)built (the CLI prints it on stderr).
     ``check``: a build is checked before it is written (time functions finite on their grids,
     initial poses assemble); the main job turns it off, as it builds Euler-angle modules that are
-    singular at their initial pose on purpose."""
+    singular at their initial pose on purpose. ``reuse``: a build asked for again takes what it
+    wrote before from kinegen's cache (:mod:`kinegen.codegen.kept`); ``make generate`` derives every one."""
 
     generated_dir: str | Path = "generated"
     announce: Callable[[str], None] | None = None
     check: bool = True
+    reuse: bool = True
     _models: dict = dataclasses.field(default_factory=dict, repr=False)
     _modules: dict = dataclasses.field(default_factory=dict, repr=False)
 
@@ -106,7 +108,7 @@ class Session:
         keep = built_with_sensitivities(path) is not False if sensitivities is None else sensitivities
         self._modules.pop((str(model_file), name), None)
         return build(model_file, name, self.generated_dir, check=check_source if self.check else None, sensitivities=keep,
-                     model=self.model(model_file))
+                     model=self.model(model_file), keep=self.reuse)
 
     def system(self, model_file: str | Path, case: str | None = None, parametrization: str = rotations.REFERENCE,
                compiled: bool | None = None, design: Mapping[str, float] | None = None):  # fmt: skip

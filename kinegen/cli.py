@@ -172,16 +172,22 @@ def _parametrization(name: str) -> rotations.Parametrization:
     help="A model with design parameters: leave out the kernels of its exact sensitivities (the larger part of "
     "such a build); the module still solves any design.",
 )
-def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None, no_sensitivities: bool) -> None:
+@click.option(
+    "--derive",
+    is_flag=True,
+    help="Derive and print the files even when the same build (model bytes, parametrization, options, this kinegen) "
+    "was kept in kinegen's cache (docs/generated-modules.md); the bytes are the same either way.",
+)
+def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None, no_sensitivities: bool, derive: bool) -> None:
     """Build MODEL_FILE into generated/<model>_<param>.py (and .c/.h), or a standalone C directory.
 
     Before anything is written, every case's time functions are checked on its time grid
     and its initial pose is checked (assembled if needed): a build that fails either check
-    writes nothing."""
+    writes nothing. The same build asked for again is taken from kinegen's cache (--derive: not)."""
     from kinegen.service.build import build as run
 
     for name in params:
-        report = run(model_file, _parametrization(name).name, target, out_dir, sensitivities=not no_sensitivities)
+        report = run(model_file, _parametrization(name).name, target, out_dir, sensitivities=not no_sensitivities, reuse=not derive)
         click.echo(f"wrote {report.path} ({report.parametrization}, {report.seconds:.2f} s)")
         for line in report.checks:
             click.echo("  " + line)

@@ -43,8 +43,10 @@ DIGGING_PHASES = [("penetrate (boom down, arm in)", 0, 3), ("curl (arm and bucke
 
 def regenerate(models: Path, generated: Path, force: bool = True) -> Session:
     """Every module of :data:`MAIN_JOB` through one session (:class:`kinegen.api.Session`): built
-    anew (``force``), or only where missing or stale -- the rule every command follows."""
-    session = Session(generated, check=False)  # euler:zxz modules are singular at their initial pose on purpose
+    anew (``force``: derived, nothing taken from the cache), or only where missing or stale -- the
+    rule every command follows."""
+    # euler:zxz modules are singular at their initial pose on purpose; built anew, every module is derived
+    session = Session(generated, check=False, reuse=not force)
     for name, params in MAIN_JOB.items():
         for param in params:
             if force:

@@ -469,6 +469,48 @@ def test_a_modules_kept_code_runs_only_when_kinegen_wrote_it(built, tmp_path, mo
         assert integrity.trusted(kept.read_bytes()) and not (tmp_path / "RAN").exists()
 
 
+def test_a_build_asked_for_again_is_taken_from_the_cache_only_when_kinegen_kept_it(tmp_path, monkeypatch):
+    """The same build into another folder derives nothing and writes the bytes of the committed
+    module and its C; a kept entry with planted code (run by the pre-write check if it were used)
+    or truncated is passed by and derived anew; a changed model is another build."""
+    import json
+
+    from kinegen.codegen import kept
+    from kinegen.runtime import check_source
+
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    model = tmp_path / "four_bar.yaml"
+    shutil.copy(MODELS / "four_bar.yaml", model)
+    derived = []
+    original = writer.generate
+    monkeypatch.setattr(writer, "generate", lambda *a, **k: derived.append(a[1].name) or original(*a, **k))
+    names = ("four_bar_quaternion.py", "four_bar_quaternion.c", "four_bar_quaternion.h")
+
+    def built_into(folder: str) -> None:
+        build(model, "quaternion", tmp_path / folder, check=check_source)
+        for name in names:
+            assert (tmp_path / folder / name).read_bytes() == (GENERATED / name).read_bytes(), (folder, name)
+
+    built_into("one")
+    built_into("two")
+    assert derived == ["quaternion"]
+    (entry,) = (tmp_path / "cache" / "builds").iterdir()
+    made = json.loads(entry.read_text())
+    made["python"][names[0]] += f"\nopen({str(tmp_path / 'RAN')!r}, 'w')\n"
+    for damaged in (json.dumps(made), entry.read_text()[:1000]):
+        entry.write_text(damaged)
+        derived.clear()
+        built_into("three")
+        assert derived == ["quaternion"] and not (tmp_path / "RAN").exists()
+        assert kept.kept(entry.stem, ("python", "c-model")) is not None  # derived anew and kept again
+    text = model.read_text()
+    model.write_text(text.replace("M: [0.45,", "M: [0.46,", 1))
+    assert model.read_text() != text
+    derived.clear()
+    build(model, "quaternion", tmp_path / "four", check=check_source)
+    assert derived == ["quaternion"] and len(list((tmp_path / "cache" / "builds").iterdir())) == 2
+
+
 @needs_cc
 def test_an_edited_c_file_is_refused_by_the_same_rule(built):
     model, path = built

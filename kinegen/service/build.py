@@ -27,10 +27,11 @@ class BuildReport:
 
 
 def build(model_file: str | Path, parametrization: str, target: str = "python", out_dir: str | Path | None = None,
-          sensitivities: bool = True) -> BuildReport:  # fmt: skip
+          sensitivities: bool = True, reuse: bool = True) -> BuildReport:  # fmt: skip
     """Build ``model_file`` in ``parametrization`` (a canonical name): ``target`` "python" into
     ``out_dir`` (default generated/), waiting for the runtime's library of its C; "c" a standalone C
-    directory (default ``<model>_<param>_c``). ``sensitivities``: as ``kinegen build --no-sensitivities`` says."""
+    directory (default ``<model>_<param>_c``). ``sensitivities``: as ``kinegen build --no-sensitivities`` says.
+    ``reuse``: the same build asked for again is taken from kinegen's cache (:mod:`kinegen.codegen.kept`)."""
     from kinegen.codegen import build as build_module
     from kinegen.codegen import module_name
     from kinegen.model import load
@@ -47,7 +48,7 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
     stem = module_name(model, get(parametrization))
     if target == "c":
         path = build_module(model_file, parametrization, out_dir or f"{stem}_c", check=check, targets=("c",),
-                            sensitivities=sensitivities, model=model)  # fmt: skip
+                            sensitivities=sensitivities, model=model, keep=reuse)  # fmt: skip
         return BuildReport(path, parametrization, time.perf_counter() - start, checks, f"{stem}_example")
     compiling: list = []  # the model's C compiles for the runtime (cached) while the Python is printed and checked
 
@@ -57,7 +58,8 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
 
             compiling.append(compile_in_background(files))
 
-    path = build_module(model_file, parametrization, out_dir or "generated", check=check, ready=ready, sensitivities=sensitivities, model=model)
+    path = build_module(model_file, parametrization, out_dir or "generated", check=check, ready=ready, sensitivities=sensitivities,
+                        model=model, keep=reuse)  # fmt: skip
     for thread in compiling:
         thread.join()
     return BuildReport(path, parametrization, time.perf_counter() - start, checks)
