@@ -7,7 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import kinegen.codegen.backends as backends
-from kinegen.codegen import kept
+import kinegen.codegen.kept as kept
 from kinegen.codegen.forked import may_fork
 from kinegen.codegen.kernels import ModuleDescription, describe
 from kinegen.errors import ModelError
