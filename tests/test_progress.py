@@ -16,8 +16,9 @@ def _piped(command: list[str], env: dict | None = None) -> subprocess.CompletedP
 
 
 def test_a_build_shows_its_stages_on_a_terminal_and_nothing_in_a_pipe(tmp_path):
-    """A build in a cache of its own (so that it derives: kinegen.codegen.kept), on a terminal, then
-    the same build again into a pipe (taken from the cache)."""
+    """A build in a cache of its own (so that it derives: kinegen.codegen.kept), on a terminal; the
+    same build again into a pipe and on the terminal (taken from the cache, and saying so there);
+    then with --derive (derived, though the cache holds it)."""
     command = [sys.executable, "-m", "kinegen.cli", "build", str(MODELS / "four_bar.yaml"), "--generated-dir", str(tmp_path)]
     env = dict(os.environ, KINEGEN_CACHE=str(tmp_path / "cache"))
     code, text = on_a_terminal(command, env)
@@ -26,6 +27,10 @@ def test_a_build_shows_its_stages_on_a_terminal_and_nothing_in_a_pipe(tmp_path):
     assert "build four_bar (quaternion): checking: [1/3 stages" in text and "wrote " in text
     piped = _piped(command, env)
     assert piped.returncode == 0 and "wrote " in piped.stdout + piped.stderr and "stages," not in piped.stdout + piped.stderr
+    code, text = on_a_terminal(command, env)
+    assert code == 0 and "build four_bar (quaternion): kept from an earlier build: [0/3 stages" in text and "deriving" not in text
+    code, text = on_a_terminal([*command, "--derive"], env)
+    assert code == 0 and "build four_bar (quaternion): deriving and printing: [0/3 stages" in text
 
 
 def test_the_benchmark_counts_its_runs_on_a_terminal_and_prints_only_its_table_into_a_pipe():
