@@ -469,6 +469,17 @@ static void solve_swing(const double *A, const double *off, const int *piv, cons
     for (int j = 0; j < 6; ++j) x[col_order_swing[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_swing[] = {0};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_swing[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_swing_0(A, off, piv, b, y);
+    for (int j = 0; j < 6; ++j) x[col_order_swing[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_swing) */
 static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -497,6 +508,8 @@ static void solve_transposed_swing(const double *A, const double *off, const int
     solve_transposed_swing_0(A, off, piv, w);
     for (int i = 0; i < 6; ++i) x[row_order_swing[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_swing[] = {0};
 
 const kinegen_model boom_dual_quaternion_swing = {
     .layout = &boom_dual_quaternion_layout, .case_name = "swing",
@@ -510,6 +523,7 @@ const kinegen_model boom_dual_quaternion_swing = {
     .n_store = 8, .n_diag = 8, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,
     .n_off = 8, .off_start = off_start_swing, .off_col = off_col_swing, .off_value = off_value_swing,
     .solve = solve_swing, .solve_transposed = solve_transposed_swing,
+    .solve_from = solve_from_swing, .input_pieces = input_pieces_swing,
     .work_doubles = BOOM_DUAL_QUATERNION_WORK_DOUBLES_SWING, .work_ints = BOOM_DUAL_QUATERNION_WORK_INTS_SWING,
     .n_kernels = 5, .kernels = kernels_swing, .design = NULL,
 };

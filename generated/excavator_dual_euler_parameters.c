@@ -18878,6 +18878,22 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     for (int j = 0; j < 112; ++j) x[col_order_digging[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_digging[] = {0, 8, 32, 48, 72, 96};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_digging_0(A, off, piv, b, y);
+    if (first <= 1) solve_digging_1(A, off, piv, b, y);
+    if (first <= 2) solve_digging_2(A, off, piv, b, y);
+    if (first <= 3) solve_digging_3(A, off, piv, b, y);
+    if (first <= 4) solve_digging_4(A, off, piv, b, y);
+    if (first <= 5) solve_digging_5(A, off, piv, b, y);
+    for (int j = 0; j < 112; ++j) x[col_order_digging[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
 static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -19537,6 +19553,8 @@ static void solve_transposed_digging(const double *A, const double *off, const i
     solve_transposed_digging_5(A, off, piv, w);
     for (int i = 0; i < 112; ++i) x[row_order_digging[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging[] = {0, 1, 3, 4};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -19554,6 +19572,7 @@ const kinegen_model excavator_dual_euler_parameters_digging = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 304, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -21714,6 +21733,23 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     for (int j = 0; j < 112; ++j) x[col_order_level_cut[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_level_cut[] = {0, 8, 32, 48, 64, 80, 96};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
+    if (first <= 5) solve_level_cut_5(A, off, piv, b, y);
+    if (first <= 6) solve_level_cut_6(A, off, piv, b, y);
+    for (int j = 0; j < 112; ++j) x[col_order_level_cut[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
 static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -22387,6 +22423,8 @@ static void solve_transposed_level_cut(const double *A, const double *off, const
     solve_transposed_level_cut_6(A, off, piv, w);
     for (int i = 0; i < 112; ++i) x[row_order_level_cut[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_level_cut[] = {0, 1, 1, 1};
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22404,6 +22442,7 @@ const kinegen_model excavator_dual_euler_parameters_level_cut = {
     .n_store = 1888, .n_diag = 906, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 316, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_level_cut,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -22423,6 +22462,8 @@ static const int diag_slot_trench_wall[] = {16, 20, 24, 28, 17, 21, 25, 29, 18, 
 static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 84, 92, 100, 100, 100, 100, 100, 108, 116, 124, 128, 128, 128, 128, 128, 128, 136, 144, 152, 152, 152, 152, 152, 160, 168, 176, 180, 180, 180, 180, 180, 180, 188, 196, 204, 204, 204, 204, 204, 212, 220, 228, 232, 236, 236, 236, 236, 244, 252, 260, 264, 264, 264, 264, 264, 272, 280, 288, 292, 292, 292, 292, 292, 292, 300, 308, 316, 316, 316, 316, 316};
 static const int off_col_trench_wall[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 11, 12, 17, 23, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 13, 14, 16, 25, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 21, 22, 27, 31, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93};
 static const int off_value_trench_wall[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 212, 213, 214, 208, 209, 211, 210, 215, 228, 229, 230, 224, 225, 227, 226, 231, 244, 245, 246, 240, 241, 243, 242, 247, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 372, 373, 374, 368, 369, 371, 370, 375, 388, 389, 390, 384, 385, 387, 386, 391, 404, 405, 406, 400, 401, 403, 402, 407, 484, 485, 486, 480, 481, 483, 482, 487, 500, 501, 502, 496, 497, 499, 498, 503, 516, 517, 518, 512, 513, 515, 514, 519, 528, 529, 531, 530, 592, 593, 598, 595, 596, 597, 594, 599, 608, 609, 614, 611, 612, 613, 610, 615, 624, 625, 630, 627, 628, 629, 626, 631, 704, 705, 710, 707, 708, 709, 706, 711, 720, 721, 726, 723, 724, 725, 722, 727, 736, 737, 742, 739, 740, 741, 738, 743, 752, 753, 755, 754, 760, 761, 763, 762, 831, 826, 827, 825, 828, 829, 830, 824, 847, 842, 843, 841, 844, 845, 846, 840, 863, 858, 859, 857, 860, 861, 862, 856, 870, 871, 869, 868, 872, 873, 878, 875, 876, 877, 874, 879, 888, 889, 894, 891, 892, 893, 890, 895, 904, 905, 910, 907, 908, 909, 906, 911, 920, 921, 923, 922, 992, 997, 998, 995, 994, 996, 993, 999, 1008, 1013, 1014, 1011, 1010, 1012, 1009, 1015, 1024, 1029, 1030, 1027, 1026, 1028, 1025, 1031};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_trench_wall[] = {0, 1, 1, 1};
 static const kinegen_design design_trench_wall = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22440,6 +22481,7 @@ const kinegen_model excavator_dual_euler_parameters_trench_wall = {
     .n_store = 1888, .n_diag = 906, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 316, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_trench_wall,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -22459,6 +22501,8 @@ static const int diag_slot_bucket_toggle[] = {16, 20, 24, 28, 17, 21, 25, 29, 18
 static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_bucket_toggle[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_bucket_toggle[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_toggle[] = {0, 1, 3, 4};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22476,6 +22520,7 @@ const kinegen_model excavator_dual_euler_parameters_bucket_toggle = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 304, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_toggle,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -22495,6 +22540,8 @@ static const int diag_slot_bucket_stroke[] = {16, 20, 24, 28, 17, 21, 25, 29, 18
 static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_bucket_stroke[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_bucket_stroke[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_stroke[] = {0, 1, 3, 4};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22512,6 +22559,7 @@ const kinegen_model excavator_dual_euler_parameters_bucket_stroke = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 304, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_stroke,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -22531,6 +22579,8 @@ static const int diag_slot_bucket_near_toggle[] = {16, 20, 24, 28, 17, 21, 25, 2
 static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_bucket_near_toggle[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_bucket_near_toggle[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_near_toggle[] = {0, 1, 3, 4};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22548,6 +22598,7 @@ const kinegen_model excavator_dual_euler_parameters_bucket_near_toggle = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 304, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_near_toggle,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -22567,6 +22618,8 @@ static const int diag_slot_digging_fast[] = {16, 20, 24, 28, 17, 21, 25, 29, 18,
 static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_digging_fast[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_digging_fast[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_fast[] = {0, 1, 3, 4};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22584,6 +22637,7 @@ const kinegen_model excavator_dual_euler_parameters_digging_fast = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 304, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_fast,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -22603,6 +22657,8 @@ static const int diag_slot_digging_paced[] = {16, 20, 24, 28, 17, 21, 25, 29, 18
 static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_digging_paced[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_digging_paced[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_paced[] = {0, 1, 3, 4};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22620,6 +22676,7 @@ const kinegen_model excavator_dual_euler_parameters_digging_paced = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 304, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_paced,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -22639,6 +22696,8 @@ static const int diag_slot_oscillation[] = {16, 20, 24, 28, 17, 21, 25, 29, 18, 
 static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_oscillation[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_oscillation[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_oscillation[] = {0, 1, 3, 4};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -22656,6 +22715,7 @@ const kinegen_model excavator_dual_euler_parameters_oscillation = {
     .n_store = 2272, .n_diag = 946, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 304, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_oscillation,
     .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

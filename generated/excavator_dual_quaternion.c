@@ -11149,6 +11149,23 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_digging[] = {0, 15, 29, 42, 56, 63, 75};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_digging_0(A, off, piv, b, y);
+    if (first <= 1) solve_digging_1(A, off, piv, b, y);
+    if (first <= 2) solve_digging_2(A, off, piv, b, y);
+    if (first <= 3) solve_digging_3(A, off, piv, b, y);
+    if (first <= 4) solve_digging_4(A, off, piv, b, y);
+    if (first <= 5) solve_digging_5(A, off, piv, b, y);
+    if (first <= 6) solve_digging_6(A, off, piv, b, y);
+    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
 static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -11542,6 +11559,8 @@ static void solve_transposed_digging(const double *A, const double *off, const i
     solve_transposed_digging_6(A, off, piv, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging[] = {0, 1, 3, 5};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11559,6 +11578,7 @@ const kinegen_model excavator_dual_quaternion_digging = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 179, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -12122,6 +12142,21 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_level_cut[] = {0, 15, 28, 52, 69};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
+    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
 static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -12502,6 +12537,8 @@ static void solve_transposed_level_cut(const double *A, const double *off, const
     solve_transposed_level_cut_4(A, off, piv, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_level_cut[] = {0, 1, 1, 1};
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12519,6 +12556,7 @@ const kinegen_model excavator_dual_quaternion_level_cut = {
     .n_store = 392, .n_diag = 249, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 190, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_level_cut,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -12538,6 +12576,8 @@ static const int diag_slot_trench_wall[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 
 static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 40, 43, 46, 49, 52, 55, 58, 61, 64, 67, 70, 73, 76, 79, 82, 85, 88, 91, 94, 94, 94, 100, 106, 106, 109, 109, 109, 115, 121, 121, 124, 127, 130, 133, 136, 136, 136, 142, 148, 148, 151, 154, 157, 159, 161, 163, 166, 169, 172, 175, 178, 178, 178, 184, 190, 190};
 static const int off_col_trench_wall[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_trench_wall[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_trench_wall[] = {0, 1, 1, 1};
 static const kinegen_design design_trench_wall = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12555,6 +12595,7 @@ const kinegen_model excavator_dual_quaternion_trench_wall = {
     .n_store = 392, .n_diag = 249, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 190, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_trench_wall,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -12574,6 +12615,8 @@ static const int diag_slot_bucket_toggle[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17
 static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_toggle[] = {0, 1, 3, 5};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12591,6 +12634,7 @@ const kinegen_model excavator_dual_quaternion_bucket_toggle = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 179, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_toggle,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -12610,6 +12654,8 @@ static const int diag_slot_bucket_stroke[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17
 static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_stroke[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_stroke[] = {0, 1, 3, 5};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12627,6 +12673,7 @@ const kinegen_model excavator_dual_quaternion_bucket_stroke = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 179, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_stroke,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -12646,6 +12693,8 @@ static const int diag_slot_bucket_near_toggle[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 
 static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_near_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_near_toggle[] = {0, 1, 3, 5};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12663,6 +12712,7 @@ const kinegen_model excavator_dual_quaternion_bucket_near_toggle = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 179, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_near_toggle,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -12682,6 +12732,8 @@ static const int diag_slot_digging_fast[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17,
 static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_fast[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_fast[] = {0, 1, 3, 5};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12699,6 +12751,7 @@ const kinegen_model excavator_dual_quaternion_digging_fast = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 179, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_fast,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -12718,6 +12771,8 @@ static const int diag_slot_digging_paced[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17
 static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_paced[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_paced[] = {0, 1, 3, 5};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12735,6 +12790,7 @@ const kinegen_model excavator_dual_quaternion_digging_paced = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 179, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_paced,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -12754,6 +12810,8 @@ static const int diag_slot_oscillation[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 
 static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_oscillation[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_oscillation[] = {0, 1, 3, 5};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12771,6 +12829,7 @@ const kinegen_model excavator_dual_quaternion_oscillation = {
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 179, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_oscillation,
     .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

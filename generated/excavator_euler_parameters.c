@@ -10867,6 +10867,24 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     for (int j = 0; j < 98; ++j) x[col_order_digging[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_digging[] = {0, 16, 27, 44, 55, 72, 83, 94};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_digging_0(A, off, piv, b, y);
+    if (first <= 1) solve_digging_1(A, off, piv, b, y);
+    if (first <= 2) solve_digging_2(A, off, piv, b, y);
+    if (first <= 3) solve_digging_3(A, off, piv, b, y);
+    if (first <= 4) solve_digging_4(A, off, piv, b, y);
+    if (first <= 5) solve_digging_5(A, off, piv, b, y);
+    if (first <= 6) solve_digging_6(A, off, piv, b, y);
+    if (first <= 7) solve_digging_7(A, off, piv, b, y);
+    for (int j = 0; j < 98; ++j) x[col_order_digging[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
 static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -11420,6 +11438,8 @@ static void solve_transposed_digging(const double *A, const double *off, const i
     solve_transposed_digging_7(A, off, piv, w);
     for (int i = 0; i < 98; ++i) x[row_order_digging[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging[] = {0, 1, 3, 5};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11437,6 +11457,7 @@ const kinegen_model excavator_euler_parameters_digging = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 297, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -12142,6 +12163,22 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     for (int j = 0; j < 98; ++j) x[col_order_level_cut[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_level_cut[] = {0, 16, 32, 54, 74, 90};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
+    if (first <= 5) solve_level_cut_5(A, off, piv, b, y);
+    for (int j = 0; j < 98; ++j) x[col_order_level_cut[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
 static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -12690,6 +12727,8 @@ static void solve_transposed_level_cut(const double *A, const double *off, const
     solve_transposed_level_cut_5(A, off, piv, w);
     for (int i = 0; i < 98; ++i) x[row_order_level_cut[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_level_cut[] = {0, 1, 1, 1};
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12707,6 +12746,7 @@ const kinegen_model excavator_euler_parameters_level_cut = {
     .n_store = 502, .n_diag = 312, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 315, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_level_cut,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -12726,6 +12766,8 @@ static const int diag_slot_trench_wall[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16,
 static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 60, 65, 70, 75, 80, 85, 90, 95, 100, 105, 110, 115, 120, 125, 130, 135, 140, 145, 149, 155, 161, 161, 165, 171, 177, 177, 182, 187, 192, 197, 201, 205, 209, 209, 213, 217, 221, 221, 225, 231, 237, 237, 242, 246, 250, 254, 254, 258, 262, 264, 266, 268, 272, 272, 272, 277, 282, 287, 291, 297, 303, 303, 307, 311, 315, 315};
 static const int off_col_trench_wall[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 7, 9, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 9, 16, 17, 21, 26, 19, 20, 24, 25, 27, 18, 20, 24, 25, 27, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 22, 28, 29, 30, 31, 23, 28, 29, 30, 31, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 3, 4, 5, 6, 10, 11, 12, 32, 33, 34, 10, 11, 12, 32, 33, 34, 3, 4, 5, 6, 13, 14, 15, 35, 36, 37, 13, 14, 15, 35, 36, 37, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 50, 51, 52, 53, 50, 51, 52, 53, 50, 51, 52, 53, 54, 55, 56, 57, 54, 55, 56, 57, 54, 55, 56, 57, 16, 17, 21, 26, 39, 40, 41, 42, 43, 58, 39, 40, 41, 42, 43, 58, 28, 29, 30, 31, 59, 70, 71, 72, 73, 70, 71, 72, 73, 70, 71, 72, 73, 20, 24, 25, 27, 20, 24, 25, 27, 44, 46, 60, 74, 45, 47, 28, 29, 30, 31, 45, 79, 80, 83, 85, 60, 79, 80, 83, 85, 44, 79, 80, 83, 85, 20, 24, 25, 27, 48, 49, 61, 87, 88, 89, 48, 49, 61, 87, 88, 89, 90, 91, 92, 93, 90, 91, 92, 93, 90, 91, 92, 93};
 static const int off_value_trench_wall[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 45, 46, 47, 48, 49, 51, 52, 53, 54, 55, 57, 58, 59, 60, 61, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 221, 233, 127, 128, 129, 131, 130, 121, 122, 123, 125, 124, 115, 116, 117, 119, 118, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 227, 228, 229, 231, 230, 255, 256, 257, 259, 258, 261, 262, 263, 265, 264, 267, 268, 269, 271, 270, 337, 338, 339, 340, 341, 325, 326, 327, 328, 329, 377, 378, 379, 380, 381, 389, 390, 391, 392, 393, 442, 446, 444, 445, 443, 454, 458, 456, 457, 455, 467, 468, 469, 470, 471, 479, 480, 481, 482, 483, 63, 64, 65, 66, 87, 88, 89, 96, 95, 94, 97, 98, 99, 106, 105, 104, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 332, 333, 334, 335, 331, 350, 351, 352, 353, 349, 384, 385, 386, 387, 383, 474, 475, 476, 477, 473, 71, 73, 72, 74, 79, 81, 80, 82, 107, 109, 108, 110, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 273, 274, 276, 275, 297, 298, 299, 306, 304, 305, 307, 308, 309, 316, 314, 315, 452, 450, 451, 449, 448, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 397, 398, 403, 404, 405, 406, 411, 416, 421, 426, 431, 436, 466, 464, 465, 463, 550, 551, 552, 554, 553, 544, 545, 546, 548, 547, 538, 539, 540, 542, 541, 485, 486, 487, 488, 509, 511, 510, 518, 517, 516, 519, 521, 520, 528, 527, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_trench_wall[] = {0, 1, 1, 1};
 static const kinegen_design design_trench_wall = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12743,6 +12785,7 @@ const kinegen_model excavator_euler_parameters_trench_wall = {
     .n_store = 502, .n_diag = 312, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 315, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_trench_wall,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -12762,6 +12805,8 @@ static const int diag_slot_bucket_toggle[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 1
 static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_bucket_toggle[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_toggle[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_toggle[] = {0, 1, 3, 5};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12779,6 +12824,7 @@ const kinegen_model excavator_euler_parameters_bucket_toggle = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 297, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_toggle,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -12798,6 +12844,8 @@ static const int diag_slot_bucket_stroke[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 1
 static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_bucket_stroke[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_stroke[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_stroke[] = {0, 1, 3, 5};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12815,6 +12863,7 @@ const kinegen_model excavator_euler_parameters_bucket_stroke = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 297, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_stroke,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -12834,6 +12883,8 @@ static const int diag_slot_bucket_near_toggle[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 
 static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_bucket_near_toggle[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_near_toggle[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_near_toggle[] = {0, 1, 3, 5};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12851,6 +12902,7 @@ const kinegen_model excavator_euler_parameters_bucket_near_toggle = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 297, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_near_toggle,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -12870,6 +12922,8 @@ static const int diag_slot_digging_fast[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16
 static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_digging_fast[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging_fast[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_fast[] = {0, 1, 3, 5};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12887,6 +12941,7 @@ const kinegen_model excavator_euler_parameters_digging_fast = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 297, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_fast,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -12906,6 +12961,8 @@ static const int diag_slot_digging_paced[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 1
 static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_digging_paced[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging_paced[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_paced[] = {0, 1, 3, 5};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12923,6 +12980,7 @@ const kinegen_model excavator_euler_parameters_digging_paced = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 297, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_paced,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -12942,6 +13000,8 @@ static const int diag_slot_oscillation[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16,
 static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_oscillation[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_oscillation[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_oscillation[] = {0, 1, 3, 5};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12959,6 +13019,7 @@ const kinegen_model excavator_euler_parameters_oscillation = {
     .n_store = 610, .n_diag = 346, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 297, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_oscillation,
     .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

@@ -12121,6 +12121,21 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_digging[] = {0, 24, 39, 58, 72};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_digging_0(A, off, piv, b, y);
+    if (first <= 1) solve_digging_1(A, off, piv, b, y);
+    if (first <= 2) solve_digging_2(A, off, piv, b, y);
+    if (first <= 3) solve_digging_3(A, off, piv, b, y);
+    if (first <= 4) solve_digging_4(A, off, piv, b, y);
+    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
 static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -12542,6 +12557,8 @@ static void solve_transposed_digging(const double *A, const double *off, const i
     solve_transposed_digging_4(A, off, piv, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging[] = {0, 0, 2, 3};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12559,6 +12576,7 @@ const kinegen_model excavator_euler_zxy_digging = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 220, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -13047,6 +13065,21 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_level_cut[] = {0, 15, 29, 56, 77};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
+    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
 static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -13470,6 +13503,8 @@ static void solve_transposed_level_cut(const double *A, const double *off, const
     solve_transposed_level_cut_4(A, off, piv, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_level_cut[] = {0, 1, 1, 1};
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13487,6 +13522,7 @@ const kinegen_model excavator_euler_zxy_level_cut = {
     .n_store = 318, .n_diag = 182, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 238, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_level_cut,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -13506,6 +13542,8 @@ static const int diag_slot_trench_wall[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 28, 54,
 static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 45, 49, 53, 56, 60, 64, 68, 72, 76, 79, 82, 86, 90, 93, 96, 100, 104, 107, 109, 115, 121, 123, 129, 135, 139, 143, 147, 151, 154, 157, 159, 162, 165, 167, 169, 175, 181, 185, 188, 191, 193, 195, 197, 199, 201, 203, 205, 208, 212, 216, 218, 224, 230, 233, 236, 238};
 static const int off_col_trench_wall[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 9, 6, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 6, 16, 18, 20, 21, 22, 17, 19, 20, 21, 17, 19, 20, 21, 20, 21, 22, 24, 26, 27, 23, 24, 25, 27, 17, 19, 20, 21, 20, 21, 22, 3, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 46, 47, 48, 46, 47, 48, 46, 47, 49, 50, 51, 49, 50, 51, 49, 50, 15, 16, 35, 36, 37, 38, 39, 52, 35, 36, 37, 38, 39, 52, 23, 24, 27, 53, 62, 63, 64, 62, 63, 64, 62, 63, 19, 20, 19, 20, 40, 43, 54, 65, 41, 42, 23, 24, 41, 70, 72, 54, 69, 70, 72, 40, 69, 70, 72, 19, 20, 44, 45, 55, 75, 76, 77, 44, 45, 55, 75, 76, 77, 78, 79, 80, 78, 79, 80, 78, 79};
 static const int off_value_trench_wall[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 30, 32, 33, 31, 35, 37, 38, 36, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 162, 172, 92, 93, 94, 87, 88, 89, 90, 82, 83, 84, 85, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 167, 168, 169, 170, 186, 187, 188, 189, 191, 192, 193, 194, 196, 197, 198, 249, 250, 248, 238, 239, 240, 241, 276, 277, 278, 279, 287, 288, 286, 334, 333, 335, 324, 325, 323, 326, 341, 342, 343, 344, 352, 353, 351, 45, 44, 62, 60, 61, 67, 66, 65, 70, 68, 69, 76, 75, 74, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 244, 245, 246, 243, 258, 259, 260, 257, 282, 283, 284, 281, 347, 348, 349, 346, 49, 50, 51, 54, 55, 56, 77, 78, 115, 116, 117, 120, 121, 122, 143, 144, 200, 201, 216, 217, 218, 223, 221, 222, 224, 225, 226, 232, 230, 231, 329, 330, 331, 328, 205, 206, 207, 210, 211, 212, 233, 234, 290, 291, 295, 296, 300, 304, 308, 312, 316, 319, 339, 340, 404, 405, 406, 399, 400, 401, 402, 394, 395, 396, 397, 355, 356, 371, 373, 372, 378, 377, 376, 379, 381, 380, 387, 386, 385, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_trench_wall[] = {0, 1, 1, 1};
 static const kinegen_design design_trench_wall = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13523,6 +13561,7 @@ const kinegen_model excavator_euler_zxy_trench_wall = {
     .n_store = 318, .n_diag = 182, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 238, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_trench_wall,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -13542,6 +13581,8 @@ static const int diag_slot_bucket_toggle[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 7
 static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_bucket_toggle[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_toggle[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_toggle[] = {0, 0, 2, 3};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13559,6 +13600,7 @@ const kinegen_model excavator_euler_zxy_bucket_toggle = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 220, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_toggle,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -13578,6 +13620,8 @@ static const int diag_slot_bucket_stroke[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 7
 static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_bucket_stroke[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_stroke[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_stroke[] = {0, 0, 2, 3};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13595,6 +13639,7 @@ const kinegen_model excavator_euler_zxy_bucket_stroke = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 220, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_stroke,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -13614,6 +13659,8 @@ static const int diag_slot_bucket_near_toggle[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 
 static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_bucket_near_toggle[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_near_toggle[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_near_toggle[] = {0, 0, 2, 3};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13631,6 +13678,7 @@ const kinegen_model excavator_euler_zxy_bucket_near_toggle = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 220, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_near_toggle,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -13650,6 +13698,8 @@ static const int diag_slot_digging_fast[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 78
 static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_digging_fast[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging_fast[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_fast[] = {0, 0, 2, 3};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13667,6 +13717,7 @@ const kinegen_model excavator_euler_zxy_digging_fast = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 220, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_fast,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -13686,6 +13737,8 @@ static const int diag_slot_digging_paced[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 7
 static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_digging_paced[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging_paced[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_paced[] = {0, 0, 2, 3};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13703,6 +13756,7 @@ const kinegen_model excavator_euler_zxy_digging_paced = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 220, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_paced,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -13722,6 +13776,8 @@ static const int diag_slot_oscillation[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 78,
 static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_oscillation[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_oscillation[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_oscillation[] = {0, 0, 2, 3};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13739,6 +13795,7 @@ const kinegen_model excavator_euler_zxy_oscillation = {
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 220, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_oscillation,
     .work_doubles = EXCAVATOR_EULER_ZXY_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_ZXY_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

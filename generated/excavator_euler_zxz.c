@@ -11964,6 +11964,21 @@ static void solve_digging(const double *A, const double *off, const int *piv, co
     for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_digging[] = {0, 24, 38, 59, 72};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_digging_0(A, off, piv, b, y);
+    if (first <= 1) solve_digging_1(A, off, piv, b, y);
+    if (first <= 2) solve_digging_2(A, off, piv, b, y);
+    if (first <= 3) solve_digging_3(A, off, piv, b, y);
+    if (first <= 4) solve_digging_4(A, off, piv, b, y);
+    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
 static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -12402,6 +12417,8 @@ static void solve_transposed_digging(const double *A, const double *off, const i
     solve_transposed_digging_4(A, off, piv, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging[] = {0, 0, 2, 3};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -12419,6 +12436,7 @@ const kinegen_model excavator_euler_zxz_digging = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
     .n_off = 245, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING,
     .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
@@ -12870,6 +12888,21 @@ static void solve_level_cut(const double *A, const double *off, const int *piv, 
     for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_level_cut[] = {0, 15, 28, 58, 80};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
+    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
 static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -13303,6 +13336,8 @@ static void solve_transposed_level_cut(const double *A, const double *off, const
     solve_transposed_level_cut_3(A, off, piv, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_level_cut[] = {0, 1, 1, 1};
 static const kinegen_design design_level_cut = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13320,6 +13355,7 @@ const kinegen_model excavator_euler_zxz_level_cut = {
     .n_store = 288, .n_diag = 159, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
     .n_off = 266, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_level_cut,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_LEVEL_CUT,
     .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
@@ -13339,6 +13375,8 @@ static const int diag_slot_trench_wall[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 
 static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 46, 50, 54, 57, 61, 65, 69, 73, 77, 80, 83, 87, 91, 94, 97, 101, 105, 108, 111, 117, 120, 126, 130, 134, 138, 142, 150, 158, 161, 167, 171, 174, 177, 180, 183, 191, 194, 197, 199, 201, 203, 206, 211, 216, 219, 222, 225, 229, 233, 238, 241, 247, 255, 258, 261, 266};
 static const int off_col_trench_wall[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 6, 16, 20, 18, 22, 24, 17, 19, 22, 24, 17, 19, 22, 24, 18, 22, 24, 25, 26, 27, 21, 23, 25, 27, 17, 19, 22, 24, 18, 22, 24, 3, 4, 5, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 7, 11, 12, 28, 29, 30, 46, 47, 8, 13, 14, 31, 32, 33, 48, 49, 15, 16, 20, 35, 36, 37, 38, 39, 50, 23, 25, 27, 51, 46, 47, 54, 46, 47, 54, 48, 49, 55, 48, 49, 55, 35, 36, 37, 38, 39, 50, 56, 57, 19, 22, 24, 19, 22, 24, 40, 43, 52, 58, 41, 42, 23, 25, 27, 46, 47, 54, 59, 60, 48, 49, 55, 61, 62, 56, 57, 63, 56, 57, 63, 41, 65, 67, 52, 64, 65, 67, 40, 64, 65, 67, 56, 57, 63, 72, 73, 19, 22, 24, 44, 45, 53, 74, 75, 76, 44, 45, 53, 74, 75, 76, 78, 79, 78, 79, 80, 78, 79, 80, 78, 79, 80, 81, 82};
 static const int off_value_trench_wall[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 32, 34, 35, 33, 37, 39, 40, 38, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 164, 174, 94, 95, 96, 89, 90, 91, 92, 84, 85, 86, 87, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 169, 170, 171, 172, 189, 190, 191, 192, 194, 195, 196, 197, 199, 200, 201, 251, 252, 253, 241, 242, 243, 244, 280, 281, 282, 283, 290, 291, 292, 340, 338, 339, 328, 329, 331, 330, 347, 348, 349, 350, 357, 358, 359, 47, 48, 46, 73, 71, 72, 78, 77, 76, 113, 114, 112, 139, 137, 138, 144, 143, 142, 247, 248, 249, 246, 261, 262, 263, 260, 286, 287, 288, 285, 353, 354, 355, 352, 64, 62, 63, 70, 69, 68, 65, 66, 130, 128, 129, 136, 135, 134, 131, 132, 203, 204, 205, 228, 229, 230, 235, 233, 234, 334, 336, 335, 333, 57, 58, 59, 79, 80, 81, 123, 124, 125, 145, 146, 147, 219, 220, 221, 227, 225, 226, 222, 223, 294, 295, 296, 299, 300, 301, 305, 309, 313, 317, 321, 324, 344, 346, 345, 51, 52, 53, 55, 54, 117, 118, 119, 121, 120, 214, 215, 216, 236, 237, 238, 410, 411, 412, 405, 406, 407, 408, 400, 401, 402, 403, 208, 209, 210, 212, 211, 361, 362, 363, 386, 388, 387, 393, 392, 391, 377, 379, 378, 385, 384, 383, 380, 381, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_trench_wall[] = {0, 1, 1, 1};
 static const kinegen_design design_trench_wall = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13356,6 +13394,7 @@ const kinegen_model excavator_euler_zxz_trench_wall = {
     .n_store = 288, .n_diag = 159, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
     .n_off = 266, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
     .solve = solve_level_cut, .solve_transposed = solve_transposed_level_cut,
+    .solve_from = solve_from_level_cut, .input_pieces = input_pieces_trench_wall,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_TRENCH_WALL,
     .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
@@ -13375,6 +13414,8 @@ static const int diag_slot_bucket_toggle[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17
 static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_toggle[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_toggle[] = {0, 0, 2, 3};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13392,6 +13433,7 @@ const kinegen_model excavator_euler_zxz_bucket_toggle = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
     .n_off = 245, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_toggle,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
@@ -13411,6 +13453,8 @@ static const int diag_slot_bucket_stroke[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17
 static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_stroke[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_stroke[] = {0, 0, 2, 3};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13428,6 +13472,7 @@ const kinegen_model excavator_euler_zxz_bucket_stroke = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
     .n_off = 245, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_stroke,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_STROKE,
     .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
@@ -13447,6 +13492,8 @@ static const int diag_slot_bucket_near_toggle[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 
 static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_near_toggle[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_bucket_near_toggle[] = {0, 0, 2, 3};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13464,6 +13511,7 @@ const kinegen_model excavator_euler_zxz_bucket_near_toggle = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
     .n_off = 245, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_bucket_near_toggle,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_NEAR_TOGGLE,
     .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
@@ -13483,6 +13531,8 @@ static const int diag_slot_digging_fast[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17,
 static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging_fast[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_fast[] = {0, 0, 2, 3};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13500,6 +13550,7 @@ const kinegen_model excavator_euler_zxz_digging_fast = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
     .n_off = 245, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_fast,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING_FAST,
     .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
@@ -13519,6 +13570,8 @@ static const int diag_slot_digging_paced[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17
 static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging_paced[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_digging_paced[] = {0, 0, 2, 3};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13536,6 +13589,7 @@ const kinegen_model excavator_euler_zxz_digging_paced = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
     .n_off = 245, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_digging_paced,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING_PACED,
     .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
@@ -13555,6 +13609,8 @@ static const int diag_slot_oscillation[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 
 static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_oscillation[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_oscillation[] = {0, 0, 2, 3};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -13572,6 +13628,7 @@ const kinegen_model excavator_euler_zxz_oscillation = {
     .n_store = 384, .n_diag = 198, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
     .n_off = 245, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
     .solve = solve_digging, .solve_transposed = solve_transposed_digging,
+    .solve_from = solve_from_digging, .input_pieces = input_pieces_oscillation,
     .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_OSCILLATION,
     .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };

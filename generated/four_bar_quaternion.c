@@ -814,6 +814,17 @@ static void solve_crank_turn(const double *A, const double *off, const int *piv,
     for (int j = 0; j < 18; ++j) x[col_order_crank_turn[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_crank_turn[] = {0};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_crank_turn[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_crank_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 18; ++j) x[col_order_crank_turn[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_crank_turn) */
 static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -879,6 +890,8 @@ static void solve_transposed_crank_turn(const double *A, const double *off, cons
     solve_transposed_crank_turn_0(A, off, piv, w);
     for (int i = 0; i < 18; ++i) x[row_order_crank_turn[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_crank_turn[] = {0};
 
 const kinegen_model four_bar_quaternion_crank_turn = {
     .layout = &four_bar_quaternion_layout, .case_name = "crank_turn",
@@ -892,6 +905,7 @@ const kinegen_model four_bar_quaternion_crank_turn = {
     .n_store = 34, .n_diag = 30, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,
     .n_off = 23, .off_start = off_start_crank_turn, .off_col = off_col_crank_turn, .off_value = off_value_crank_turn,
     .solve = solve_crank_turn, .solve_transposed = solve_transposed_crank_turn,
+    .solve_from = solve_from_crank_turn, .input_pieces = input_pieces_crank_turn,
     .work_doubles = FOUR_BAR_QUATERNION_WORK_DOUBLES_CRANK_TURN, .work_ints = FOUR_BAR_QUATERNION_WORK_INTS_CRANK_TURN,
     .n_kernels = 5, .kernels = kernels_crank_turn, .design = NULL,
 };

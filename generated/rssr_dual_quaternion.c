@@ -736,6 +736,17 @@ static void solve_turn(const double *A, const double *off, const int *piv, const
     for (int j = 0; j < 12; ++j) x[col_order_turn[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_turn[] = {0};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_turn[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_turn_0(A, off, piv, b, y);
+    for (int j = 0; j < 12; ++j) x[col_order_turn[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_turn) */
 static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -778,6 +789,8 @@ static void solve_transposed_turn(const double *A, const double *off, const int 
     solve_transposed_turn_0(A, off, piv, w);
     for (int i = 0; i < 12; ++i) x[row_order_turn[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_turn[] = {0};
 
 const kinegen_model rssr_dual_quaternion_turn = {
     .layout = &rssr_dual_quaternion_layout, .case_name = "turn",
@@ -791,6 +804,7 @@ const kinegen_model rssr_dual_quaternion_turn = {
     .n_store = 16, .n_diag = 16, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
     .n_off = 13, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
     .solve = solve_turn, .solve_transposed = solve_transposed_turn,
+    .solve_from = solve_from_turn, .input_pieces = input_pieces_turn,
     .work_doubles = RSSR_DUAL_QUATERNION_WORK_DOUBLES_TURN, .work_ints = RSSR_DUAL_QUATERNION_WORK_INTS_TURN,
     .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };

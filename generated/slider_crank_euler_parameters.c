@@ -977,6 +977,17 @@ static void solve_run(const double *A, const double *off, const int *piv, const 
     for (int j = 0; j < 21; ++j) x[col_order_run[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_run[] = {0};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_run[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_run_0(A, off, piv, b, y);
+    for (int j = 0; j < 21; ++j) x[col_order_run[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_run) */
 static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -1054,6 +1065,8 @@ static void solve_transposed_run(const double *A, const double *off, const int *
     solve_transposed_run_0(A, off, piv, w);
     for (int i = 0; i < 21; ++i) x[row_order_run[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_run[] = {0};
 
 const kinegen_model slider_crank_euler_parameters_run = {
     .layout = &slider_crank_euler_parameters_layout, .case_name = "run",
@@ -1067,6 +1080,7 @@ const kinegen_model slider_crank_euler_parameters_run = {
     .n_store = 57, .n_diag = 55, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
     .n_off = 24, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
     .solve = solve_run, .solve_transposed = solve_transposed_run,
+    .solve_from = solve_from_run, .input_pieces = input_pieces_run,
     .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_RUN,
     .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
@@ -1276,6 +1290,17 @@ static void solve_dead_centre(const double *A, const double *off, const int *piv
     for (int j = 0; j < 21; ++j) x[col_order_dead_centre[j]] = y[j];
 }
 
+/* the first permuted row of each function above */
+static const int solve_rows_dead_centre[] = {0};
+
+/* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
+ * those rows of y are zero, the functions before it are skipped */
+static void solve_from_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+    for (int j = 0; j < solve_rows_dead_centre[first]; ++j) y[j] = 0.0;
+    if (first <= 0) solve_dead_centre_0(A, off, piv, b, y);
+    for (int j = 0; j < 21; ++j) x[col_order_dead_centre[j]] = y[j];
+}
+
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_dead_centre) */
 static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
@@ -1350,6 +1375,8 @@ static void solve_transposed_dead_centre(const double *A, const double *off, con
     solve_transposed_dead_centre_1(A, off, piv, w);
     for (int i = 0; i < 21; ++i) x[row_order_dead_centre[i]] = w[i];
 }
+/* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
+static const int input_pieces_dead_centre[] = {0};
 
 const kinegen_model slider_crank_euler_parameters_dead_centre = {
     .layout = &slider_crank_euler_parameters_layout, .case_name = "dead_centre",
@@ -1363,6 +1390,7 @@ const kinegen_model slider_crank_euler_parameters_dead_centre = {
     .n_store = 143, .n_diag = 68, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
     .n_off = 10, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
     .solve = solve_dead_centre, .solve_transposed = solve_transposed_dead_centre,
+    .solve_from = solve_from_dead_centre, .input_pieces = input_pieces_dead_centre,
     .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_DEAD_CENTRE,
     .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };

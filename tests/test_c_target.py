@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from kinegen import rotations
 from kinegen.bench.callgraph import CallGraph
 from kinegen.cli import main
 from kinegen.codegen.backends.c import config
@@ -385,6 +386,87 @@ def test_the_written_out_block_solve_is_the_solvers_loop_to_the_bit(tmp_path):
     assert all(line.endswith(" identical") and int(line.split()[1]) >= 2 for line in lines), lines
     residuals = [[float(x) for x in line.split()[1:]] for line in run.stdout.splitlines() if line.startswith("residuals ")]
     assert len(residuals) == len(lines) and all(max(pair) < 1e-14 for pair in residuals), residuals
+
+
+SOLVE_FROM_PROGRAM = r"""
+#include "chain14_euler_parameters.h"
+#include <stdio.h>
+#include <string.h>
+static chain14_euler_parameters_workspace w;
+static double states[2][42][3 * CHAIN14_EULER_PARAMETERS_N_V + CHAIN14_EULER_PARAMETERS_N_Q];
+static double inputs[3 * 14];
+
+/* the certified trajectory along the case's own functions, every step's q, v, a into states[k] */
+static int run(const kinegen_model *m, int k) {
+    kinegen_solver s;
+    int n = m->n_inputs, i;
+    if (kinegen_init(&s, m, NULL, w.doubles, w.ints) != KINEGEN_OK) return -1;
+    s.options.case_inputs = 1;
+    kinegen_case_inputs(m, m->t0, inputs);
+    if (kinegen_start(&s, m->t0, m->initial_q, inputs, inputs + n, inputs + 2 * n) != KINEGEN_OK) return -1;
+    for (i = 0; i <= m->steps && i < 42; ++i) {
+        double t = m->t0 + (m->t1 - m->t0) * i / m->steps;
+        if (i > 0) {
+            kinegen_case_inputs(m, t, inputs);
+            if (kinegen_step(&s, t, inputs, inputs + n, inputs + 2 * n) != KINEGEN_OK) return -i;
+        }
+        memcpy(states[k][i], s.q, sizeof(double) * (size_t)m->n_q);
+        memcpy(states[k][i] + m->n_q, s.v, sizeof(double) * (size_t)m->n_v);
+        memcpy(states[k][i] + m->n_q + m->n_v, s.a, sizeof(double) * (size_t)m->n_v);
+    }
+    if (k == 0) { /* each input's column from its part of the solve against the whole solve, at the last step */
+        static double b[CHAIN14_EULER_PARAMETERS_N_V], x[CHAIN14_EULER_PARAMETERS_N_V], y[CHAIN14_EULER_PARAMETERS_N_V], work[CHAIN14_EULER_PARAMETERS_N_V];
+        int differ = 0, first = 0;
+        for (int c = 0; c < n; ++c) {
+            memset(b, 0, sizeof(b));
+            b[m->n_v - n + c] = 1.0 + 0.1 * c;
+            m->solve(s.store, s.off, s.pivots, b, x, work);
+            m->solve_from(s.store, s.off, s.pivots, b, y, work, m->input_pieces[c]);
+            for (int j = 0; j < m->n_v; ++j) differ += x[j] != y[j]; /* (== : a zero's sign aside) */
+            first = m->input_pieces[c] > first ? m->input_pieces[c] : first;
+        }
+        printf("columns %d differ, the last input from function %d\n", differ, first);
+    }
+    return i;
+}
+
+int main(void) {
+    const kinegen_model *m = chain14_euler_parameters_cases[0];
+    kinegen_model whole = *m; /* the same case, every column through the whole solve */
+    whole.solve_from = NULL;
+    whole.input_pieces = NULL;
+    if (m->solve_from == NULL || m->input_pieces == NULL) return 2;
+    int a = run(m, 0), b = run(&whole, 1);
+    if (a != b || a < 2) return 3;
+    printf("%s %d %s\n", m->case_name, a, memcmp(states[0], states[1], sizeof(states[0])) == 0 ? "identical" : "differ");
+    return 0;
+}
+"""
+
+
+def test_each_inputs_column_from_its_part_of_the_written_solve_changes_no_bit(tmp_path):
+    """The certificate solves each moving input's column of Phi_q^-1 Phi_u from the function of the
+    written solve that holds its driver's row (kinegen_model.solve_from, input_pieces): the rows before
+    are zero. chain-14 (five functions, its inputs spread over all of them): every column equal to the
+    whole solve's, and the certified trajectory's states equal to the bit to the one solved with both
+    fields NULL. Real C, strict flags."""
+    from kinegen.codegen import writer
+    from kinegen.model import loads
+
+    made = writer.generate(loads(chain_yaml(14), "chain14.yaml"), rotations.get("euler-parameters"), ("c-model",))["c-model"]
+    for name, text in made.items():
+        (tmp_path / name).write_text(text)
+    for runtime in config.RUNTIME:
+        shutil.copy(config.SOLVER / runtime, tmp_path)
+    (tmp_path / "solve_from.c").write_text(SOLVE_FROM_PROGRAM)
+    sources = [str(tmp_path / n) for n in ("solve_from.c", "chain14_euler_parameters.c", "kinegen_solver.c")]
+    done = subprocess.run([CC, *STRICT, *STACK, "-O2", "-o", str(tmp_path / "solve_from"), *sources, "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    run = subprocess.run([str(tmp_path / "solve_from")], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, (run.returncode, run.stdout, run.stderr)
+    columns, trajectory = run.stdout.splitlines()
+    assert columns.startswith("columns 0 differ") and int(columns.split()[-1]) >= 3, columns  # (functions 0-4: most skipped)
+    assert trajectory.startswith("drive ") and trajectory.endswith(" identical") and int(trajectory.split()[1]) >= 41, trajectory
 
 
 def test_the_c_solver_finds_its_kernels_by_role_and_refuses_a_table_that_declares_them_otherwise(tmp_path):

@@ -18,6 +18,7 @@ sensitivities' library when they are first asked for.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -141,7 +142,7 @@ def plan_arrays(rows: tuple[int, ...], cols: tuple[int, ...], plan: Plan, name: 
 STRAIGHT_SOLVE_LIMIT = 50_000
 
 
-def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]]] | None:
+def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]], list[int]] | None:
     """The block solves y = M^-1 b and w <- M^-T w (in the plan's permuted order) for a plan's factors,
     written out: the bodies of C functions of (``A`` the blocks' LU factors, ``off`` the values below
     them, ``piv`` the blocks' pivots, then ``b`` and ``y``, or ``w``), called in order. kinegen_solver.c's
@@ -150,7 +151,9 @@ def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]
     substitutions (transposed: the blocks from the last, U^T, L^T, the interchanges, then the entries
     below the block) --, cut at block boundaries into functions of at most about
     :data:`config.PART_STATEMENTS` statements (the generated kernels' length, which keeps the compile
-    time linear). None for a plan over :data:`STRAIGHT_SOLVE_LIMIT`."""
+    time linear); then the first (permuted) row of each forward function, where a right-hand side
+    that is zero in the rows before it may start (``solve_from``). None for a plan over
+    :data:`STRAIGHT_SOLVE_LIMIT`."""
     starts, stores = arrays.block_start, arrays.block_store
     if sum((b - a) ** 2 for a, b in itertools.pairwise(starts)) + len(arrays.off_col) + starts[-1] > STRAIGHT_SOLVE_LIMIT:
         return None
@@ -186,21 +189,34 @@ def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]
         for row in range(first, end):
             lines += [f"w[{arrays.off_col[e]}] -= off[{e}] * w[{row}];" for e in range(arrays.off_start[row], arrays.off_start[row + 1])]
         transposed.append(lines)
-    return _pieces(forward), _pieces(transposed[::-1])
+    pieces, first_blocks = _pieces(forward)
+    return pieces, _pieces(transposed[::-1])[0], [starts[block] for block in first_blocks]
 
 
-def _pieces(blocks: list[list[str]]) -> list[list[str]]:
+def _pieces(blocks: list[list[str]]) -> tuple[list[list[str]], list[int]]:
     """Consecutive blocks' statements in functions of at most about :data:`config.PART_STATEMENTS`
-    statements (a block's are never cut), each opening with ``(void)`` of the arguments it does not read."""
+    statements (a block's are never cut), each opening with ``(void)`` of the arguments it does not
+    read; and the index of each function's first block."""
     pieces: list[list[str]] = [[]]
-    for lines in blocks:
+    first_blocks = [0]
+    for block, lines in enumerate(blocks):
         if pieces[-1] and sum(line.count(";") for line in pieces[-1] + lines) > config.PART_STATEMENTS:
             pieces.append([])
+            first_blocks.append(block)
         pieces[-1] += lines
     for piece in pieces:
         text = "\n".join(piece)
         piece[:0] = [f"(void){name};" for name in ("A", "off", "piv") if f"{name}[" not in text]
-    return pieces
+    return pieces, first_blocks
+
+
+def input_pieces(arrays: _PlanArrays, piece_rows: list[int], n_inputs: int) -> list[int]:
+    """Per driver input, the forward function of a plan's written solve (:func:`straight_solve`) whose
+    rows hold its driver's row: the drivers' rows are the last ``n_inputs`` of Phi_q, in the inputs'
+    order (kinegen_model), so the column of Phi_q^-1 Phi_u for an input is zero before it."""
+    rows = len(arrays.row_order)
+    position = {row: k for k, row in enumerate(arrays.row_order)}
+    return [bisect.bisect_right(piece_rows, position[rows - n_inputs + k]) - 1 for k in range(n_inputs)]
 
 
 class _Model:
@@ -410,6 +426,7 @@ class _Model:
         d, stem = self.d, self.stem
         cases = []
         solves: dict[tuple, str | None] = {}  # a plan's solve, written once: the cases sharing a plan share its function
+        piece_rows: dict[tuple, list[int]] = {}
         for name, case in d.cases.items():
             if case.plan is None:
                 raise ValueError(
@@ -426,7 +443,11 @@ class _Model:
             if key not in solves:
                 written = straight_solve(arrays)
                 solves[key] = None if written is None else name
-            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values, written=written, solve=solves[key]))
+                if written is not None:
+                    piece_rows[key] = written[2]
+            pieces = input_pieces(arrays, piece_rows[key], len(case.drivers)) if solves[key] else None
+            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values, written=written, solve=solves[key],
+                                         input_pieces=pieces))  # fmt: skip
         shared = []
         for kernel in d.kernels.values():
             function = f"{stem}_frames" if kernel.name == "frames" else f"shared_{kernel.name}"

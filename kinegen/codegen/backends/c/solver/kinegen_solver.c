@@ -660,7 +660,12 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
                 int row = nv - ni + moving[first + c];
                 columns[(size_t)c * nv + row] = s->w2[row];
             }
-            solve_columns(s, columns, group, scratch);
+            if (m->solve_from != NULL && m->input_pieces != NULL) /* each column from its driver's part of the solve */
+                for (int c = 0; c < group; ++c)
+                    m->solve_from(s->store, s->off, s->pivots, columns + (size_t)c * nv, columns + (size_t)c * nv, scratch,
+                                  m->input_pieces[moving[first + c]]);
+            else
+                solve_columns(s, columns, group, scratch);
             for (int c = 0; c < group; ++c) {
                 int k = moving[first + c];
                 const double *column = columns + (size_t)c * nv;
@@ -1354,6 +1359,7 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
     FIELD(kinegen_model, off_start, "int*"), FIELD(kinegen_model, off_col, "int*"), FIELD(kinegen_model, off_value, "int*"),
     FIELD(kinegen_model, solve, "function"), FIELD(kinegen_model, solve_transposed, "function"),
+    FIELD(kinegen_model, solve_from, "function"), FIELD(kinegen_model, input_pieces, "int*"),
     FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
     FIELD(kinegen_model, kernels, "pointer"), FIELD(kinegen_model, design, "pointer"),
 

@@ -265,6 +265,11 @@ typedef struct kinegen_model {
     void (*solve)(const double *store, const double *off, const int *pivots, const double *b, double *x, double *y);
     /* x = Phi_q^-T c likewise (w: n_v values of work; x and c may alias), NULL with solve */
     void (*solve_transposed)(const double *store, const double *off, const int *pivots, const double *c, double *x, double *w);
+    /* x = Phi_q^-1 b like solve, for a b that is zero in the permuted rows before those of the written solve's
+     * function `first` (their part skipped), and per input k the function where its column of Phi_q^-1 Phi_u
+     * starts (input_pieces[k]: its driver's row is in it); both NULL with solve, or in C generated before them */
+    void (*solve_from)(const double *store, const double *off, const int *pivots, const double *b, double *x, double *y, int first);
+    const int *input_pieces;
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
     int n_kernels;                 /* every kernel of the case, as data (with design parameters: */
     const kinegen_kernel *kernels; /*   the ones taking p, slot p last) */
