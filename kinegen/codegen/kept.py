@@ -61,10 +61,12 @@ def kept(key: str, targets: tuple[str, ...]) -> dict[str, dict[str, str]] | None
 
 def keep(key: str, made: dict[str, dict[str, str]]) -> None:
     """Keep ``made`` (what :func:`kinegen.codegen.writer.generate` made for ``key``) and record every
-    file of it as kinegen's own."""
+    file of it as kinegen's own (those the build wrote are recorded already: not written again)."""
     for files in made.values():
         for text in files.values():
-            remember(text.encode("utf-8"))
+            data = text.encode("utf-8")
+            if not trusted(data):
+                remember(data)
     try:
         write_atomic(_path(key), json.dumps(made))
     except OSError:
