@@ -207,6 +207,13 @@ def test_a_worker_killed_mid_run_is_survived(one_worker_run: Path, tmp_path: Pat
     assert identical(table, Store(one_worker_run).read())
 
 
+def _interruptible() -> None:
+    """In the child before it runs: Ctrl-C's default action, as on a terminal. A test run started in
+    the background of a non-interactive shell (``pytest ... &``) ignores SIGINT, and so would the
+    command it starts: Python then installs no KeyboardInterrupt, and the run wrote all 40 partitions."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(one_worker_run: Path, tmp_path: Path) -> None:
     out = tmp_path / "resumed.parquet"
     command = [sys.executable, "-m", "kinegen.cli", "explore", str(MODEL), "--study", "calibration", "--samples", "40",
@@ -216,7 +223,8 @@ def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(on
     environment = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     for _attempt in range(3):  # on a loaded machine this test may sleep until the run wrote every partition: again
         shutil.rmtree(out, ignore_errors=True)
-        run = subprocess.Popen(command, cwd=ROOT, env=environment, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        run = subprocess.Popen(command, cwd=ROOT, env=environment, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=_interruptible)  # fmt: skip
         deadline = time.monotonic() + 120
         while len(Store(out).done()) < 3 and run.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
