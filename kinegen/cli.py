@@ -555,7 +555,7 @@ def inspect(
     session = _session(generated_dir)
     _nominal(session.model(model_file))  # said once
     q, where = _configuration(q_file) if q_file else (None, "")
-    plan = service.plan(session, model_file, _parametrization(param).name, case, at, q, where, budget)
+    plan = service.plan(session, model_file, _parametrization(param).name, case, at, q, where, budget, every_block=as_json or bool(det_file))
     found = service.run(plan)
     report, verdict = found.inspection, found.verdict
     if det_file:

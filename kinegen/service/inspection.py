@@ -26,7 +26,9 @@ from kinegen.errors import RequestError
 class InspectionPlan:
     """A checked request (:func:`plan`): the model (design parameters at nominal), the
     parametrization, the case, the time (exact text), the given configuration (None: solved at
-    that time with ``numeric``, the case's quaternion system) and the budget [s] of the exact work."""
+    that time with ``numeric``, the case's quaternion system), the budget [s] of the exact work and
+    whether every small block's symbolic determinant is wanted (the JSON report, ``--det-file``) or
+    only the singular blocks' (the text report)."""
 
     model: Any  #: kinegen.model.Model
     parametrization: rotations.Parametrization
@@ -37,6 +39,7 @@ class InspectionPlan:
     budget: float
     session: Session
     model_file: str | Path
+    every_block: bool = True
 
 
 @dataclass(frozen=True)
@@ -57,7 +60,8 @@ class InspectionReport:
 
 
 def plan(session: Session, model_file: str | Path, parametrization: str = rotations.REFERENCE, case: str | None = None,
-         at: str | None = None, q: Any = None, q_source: str = "the configuration", budget: float = 60.0) -> InspectionPlan:  # fmt: skip
+         at: str | None = None, q: Any = None, q_source: str = "the configuration", budget: float = 60.0,
+         every_block: bool = True) -> InspectionPlan:  # fmt: skip
     """The checked request to inspect ``case`` (default: the first) of ``model_file`` in
     ``parametrization`` at time ``at`` (exact text; default the case's start) or at the
     configuration ``q`` (an object {stored coordinate: value} or a list in stored order, read from
@@ -79,14 +83,15 @@ def plan(session: Session, model_file: str | Path, parametrization: str = rotati
         values = configuration(q, coordinates(model, chosen_parametrization).stored_names, q_source)
     else:  # the configuration is solved with the quaternion module of the case
         numeric = session.system(model_file, chosen, rotations.REFERENCE)
-    return InspectionPlan(model, chosen_parametrization, chosen, when, values, numeric, budget, session, model_file)
+    return InspectionPlan(model, chosen_parametrization, chosen, when, values, numeric, budget, session, model_file, every_block)
 
 
 def run(plan: InspectionPlan) -> InspectionReport:
     """Inspect Phi_q exactly, and classify it where it is singular (see :class:`InspectionReport`)."""
     from kinegen.analysis.inspect import inspect
 
-    inspection = inspect(plan.model, plan.parametrization, plan.case, plan.at, plan.q, plan.numeric, budget=plan.budget)
+    inspection = inspect(plan.model, plan.parametrization, plan.case, plan.at, plan.q, plan.numeric, budget=plan.budget,
+                         every_block=plan.every_block)  # fmt: skip
     verdict = None
     if inspection.singular:
         from kinegen.analysis.classify import classify
@@ -95,8 +100,22 @@ def run(plan: InspectionPlan) -> InspectionReport:
         quaternion = rotations.get(rotations.REFERENCE)
         numeric = plan.numeric if plan.numeric is not None else plan.session.system(plan.model_file, plan.case, rotations.REFERENCE)
         physical = None if plan.q is None else convert(plan.q, plan.parametrization, quaternion, len(plan.model.bodies))
-        verdict = classify(plan.model, plan.parametrization, plan.case, float(inspection.t), inspection, numeric, physical=physical)
+        verdict = classify(plan.model, plan.parametrization, plan.case, float(inspection.t), inspection, numeric, physical=physical,
+                           system_of=lambda name: _fresh_system(plan, name))  # fmt: skip
     return InspectionReport(plan, inspection, verdict)
+
+
+def _fresh_system(plan: InspectionPlan, parametrization: str) -> Any:
+    """The case's numeric system in ``parametrization`` from its generated module when that is there
+    and fresh (Python functions: one Jacobian is evaluated), else None: nothing is built for it."""
+    from kinegen.errors import GeneratedModuleError
+    from kinegen.runtime import from_module, load_module
+
+    try:
+        module = load_module(plan.session.module_path(plan.model_file, parametrization), plan.model_file)
+    except GeneratedModuleError:
+        return None
+    return from_module(module, plan.case, compiled=False)
 
 
 def inspection_time(at: str | None, case: Any) -> str:
