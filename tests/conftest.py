@@ -66,14 +66,14 @@ def nominal_inertia(name: str, body) -> tuple[float, np.ndarray, np.ndarray]:
 
 
 #: tests that read :func:`excavator_working_range` run in one test process (make test distributes
-#: with --dist loadgroup), so the excavator's working range and boundary (~15 s) are computed once
+#: with --dist loadgroup), so the excavator's working range and boundary (~6 s) are computed once
 WORKING_RANGE_GROUP = pytest.mark.xdist_group(name="excavator_working_range")
 
 
 @functools.cache
 def excavator_working_range():
     """The excavator's working_range spec, its case's system (compiled, as `kinegen envelope` runs
-    it: the boundary 10 s instead of 21 s with the Python functions), the working range and its
+    it: the boundary 5 s, its input effects in C), the working range and its
     exact boundary. Mark a test that uses it with :data:`WORKING_RANGE_GROUP`."""
     from kinegen.analysis.boundary import working_range_boundary
     from kinegen.analysis.envelope import working_range

@@ -85,6 +85,37 @@ def test_the_compiled_path_is_the_default_and_matches_python():
     assert np.median(ratio) < 1e-12 and ratio.max() < np.log(3.0)
 
 
+def test_the_input_effects_in_c_are_the_numpy_paths_and_central_differences_of_solved_poses():
+    """kinegen_input_effects (dq/du = Phi_q^-1 nu(q, u, e_j) at many configurations, what the working
+    range's boundary and sweeps ask for) against the NumPy path (the Python kernels, the batched block
+    solve) to 1e-13 of its scale along the digging cycle, against central differences of configurations
+    solved at u -+ h e_j, and NaN where Phi_q is singular (the slider crank at its dead centre)."""
+    import dataclasses
+
+    from kinegen.runtime.sensitivity import configuration_sensitivities
+
+    _, native = systems("excavator_quaternion", "digging")
+    solved = Solver(native).solve(np.linspace(native.t0, native.t1, 41))
+    q, u = solved.q.T, native.driver_inputs(solved.times)[0]
+    by_c = configuration_sensitivities(native, q, u, design=False)[1]
+    by_numpy = configuration_sensitivities(dataclasses.replace(native, native=None), q, u, design=False)[1]
+    assert by_c.shape == (41, native.n_velocity, native.n_inputs)
+    assert np.abs(by_c - by_numpy).max() <= 1e-13 * np.abs(by_numpy).max()
+    newton, h = Solver(native), 1e-6
+    for j in range(native.n_inputs):  # central differences of every body's origin at the cycle's middle configuration
+        step = np.eye(native.n_inputs)[j] * h
+        ahead, behind = (newton.position(q[:, 20], u[:, 20] + sign * step, solved.times[20])[0] for sign in (1, -1))
+        for body in native.bodies:  # (its first three velocity coordinates: the origin's, in the global frame)
+            moved = (native.body_coordinates(ahead, body)[:3] - native.body_coordinates(behind, body)[:3]) / (2 * h)
+            assert np.abs(moved - native.body_coordinates(by_c[20, :, j], body, velocity=True)[:3]).max() <= 1e-7, (j, body)
+    _, crank = systems("slider_crank_quaternion", "dead_centre")
+    dead_centre = np.array([0, 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 1, 0, 0, 0, 0.8, 0, 0, 1, 0, 0, 0.0])
+    at_start = crank.driver_inputs(np.array([crank.t0]))[0][:, 0]
+    away = Solver(crank).solve(np.array([crank.t0])).q[0]
+    effects = crank.native.input_effects(np.column_stack([away, dead_centre]), np.column_stack([at_start, [0.8]]))
+    assert np.isfinite(effects[0]).all() and np.isnan(effects[1]).all()
+
+
 @pytest.mark.parametrize(
     ("stem", "case", "loads", "inertia"),
     [("excavator_quaternion", "digging", ("payload", "cutting"), False), ("excavator_dual_euler_parameters", "level_cut", ("payload",), True),

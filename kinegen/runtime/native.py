@@ -481,6 +481,17 @@ class NativeCase:
         )
         return q.T.copy(), converged.astype(bool), iterations.astype(int), residuals
 
+    def input_effects(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """dq/du = Phi_q^-1 nu(q, u, e_j) at the solved configurations q (n_q, K) with inputs u
+        (n_inputs, K), by ``kinegen_input_effects``: (K, n_v, n_inputs), NaN where Phi_q is singular."""
+        q = np.ascontiguousarray(np.asarray(q, dtype=float).reshape(self.n_q, -1).T)
+        count = q.shape[0]
+        u = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=float).reshape(self.n_inputs, -1), (self.n_inputs, count)).T)
+        out = np.empty((count, self.n_v, self.n_inputs))
+        solver = self.solver(Options.newton_only(1e-10, 1e-10))
+        self.library.kinegen_input_effects(solver.pointer, count, q.ctypes.data, u.ctypes.data, out.ctypes.data)
+        return out
+
 
 class Newton:
     """Full Newton on one configuration in C, with one solver kept for it (the Python solver's

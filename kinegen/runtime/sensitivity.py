@@ -208,6 +208,8 @@ def configuration_sensitivities(
     ``design`` (or design parameters) only dq/du, which any module gives: (None, dq/du)."""
     q, u = np.asarray(q, dtype=float), np.asarray(u, dtype=float)
     m, n_inputs, count = system.n_velocity, system.n_inputs, q.shape[1]
+    if system.native is not None and not (design and system.design):  # compiled: in C, configuration by configuration
+        return None, system.native.input_effects(q, u)
     if count == 1 and not (design and system.design):  # one configuration: the system's fast kernels (compiled when there)
         unit = np.eye(n_inputs)
         rates = np.stack([system.velocity_rhs(q[:, 0], u[:, 0], unit[j]) for j in range(n_inputs)], axis=1)  # -Phi_u

@@ -967,6 +967,37 @@ int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iteration
     return status;
 }
 
+int kinegen_input_effects(kinegen_solver *s, int count, const double *Q, const double *U, double *DQDU) {
+    const kinegen_model *m = s->model;
+    int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, regular = 0;
+    double *ones = s->x, *column = s->step; /* n_inputs <= n_v values; a column of Phi_q^-1 Phi_u */
+    if (s->role != NULL) return 0;
+    for (int j = 0; j < ni; ++j) ones[j] = 1.0;
+    for (int k = 0; k < count; ++k) {
+        const double *q = Q + (size_t)k * nq, *u = U + (size_t)k * ni;
+        double *out = DQDU + (size_t)k * nv * ni;
+        phi_jac(s, q, u, s->phi, s->jac);
+        if (factor(s, s->jac)) {
+            for (int i = 0; i < nv * ni; ++i) out[i] = NAN;
+            continue;
+        }
+        nu(s, q, u, ones, s->w2); /* -Phi_u 1: -dPhi/du_j in driver j's row, n_v - n_inputs + j (kinegen_model) */
+        for (int j = 0; j < ni; ++j) {
+            int row = nv - ni + j;
+            memset(column, 0, sizeof(double) * (size_t)nv);
+            column[row] = s->w2[row];
+            if (m->solve_from != NULL && m->input_pieces != NULL) /* from its driver's part of the solve */
+                m->solve_from(s->store, s->off, s->pivots, column, column, s->y, m->input_pieces[j]);
+            else
+                solve(s, column, column);
+            for (int i = 0; i < nv; ++i) out[(size_t)i * ni + j] = column[i];
+        }
+        ++regular;
+    }
+    s->have_factors = 0;
+    return regular;
+}
+
 /* rhs (n_v x n_p, row-major) = the sparse matrix (values at pattern) times [X1; X2; I] (each n_v x
  * n_p): columns below n_v multiply rows of X1, the next n_v rows of X2, and the columns from
  * first_parameter on are the parameters' (identity). */
@@ -1425,6 +1456,7 @@ const kinegen_struct kinegen_structs[] = {
                                  int *iterations, double *residuals))                                                  \
     X(int, kinegen_newton, (kinegen_solver *s, double *q, const double *u, int *iterations, double *residual,         \
                             double *travel))                                                                           \
+    X(int, kinegen_input_effects, (kinegen_solver *s, int count, const double *Q, const double *U, double *DQDU))     \
     X(int, kinegen_sensitivities, (kinegen_solver *s, int count, const double *Q, const double *V, const double *A,   \
                                    const double *U, const double *UD, const double *UDD, double *S, double *DV,        \
                                    double *DA, double *work))                                                          \

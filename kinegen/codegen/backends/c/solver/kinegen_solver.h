@@ -412,6 +412,13 @@ int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q
  * max-norm of its steps. The solver's state stays as it was (not its factors). */
 int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iterations, double *residual, double *travel);
 
+/* The change of the configuration per unit change of each input, Phi staying 0, at many solved
+ * configurations: dq/du = Phi_q^-1 nu(q, u, e_j) in column j (velocity coordinates), row k of Q
+ * (count x n_q) with row k of U (count x n_inputs) into block k of DQDU (count blocks of n_v x
+ * n_inputs, row-major). A configuration whose Phi_q is singular gets NaN. Returns how many were
+ * regular. The solver's state stays as it was (not its factors). */
+int kinegen_input_effects(kinegen_solver *s, int count, const double *Q, const double *U, double *DQDU);
+
 /* Exact sensitivities by the design parameters along a solved trajectory (a model with design
  * parameters; the solver's design values): at each of count time points, rows of Q (count x n_q),
  * V, A (count x n_v) and of the inputs U, UD, UDD (count x n_inputs), row-major, it factors Phi_q
