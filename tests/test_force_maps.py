@@ -95,6 +95,23 @@ def reached():
     return reach_map(generated_system("excavator_quaternion", "digging"), model("excavator"))
 
 
+#: the boom and arm lengths of the brute force's coarse start (25 x 25 over their ranges in models/excavator.yaml)
+COARSE = [(b, a) for b in np.linspace(1.7352, 3.0649, 25) for a in np.linspace(1.8164, 3.2939, 25)]
+
+
+@functools.cache
+def _coarse_tips(bucket: float) -> np.ndarray:
+    """The closed-form tip (x, z) at every coarse (boom, arm) start with this bucket length, (625, 2)
+    (far away where the loop cannot close): the same for every target, so computed once per length."""
+    tips = []
+    for boom, arm in COARSE:
+        try:
+            tips.append(_tip(np.array([boom, arm, bucket])))
+        except ValueError:
+            tips.append(np.array([1e3, 1e3]))
+    return np.array(tips)
+
+
 def _largest_over_the_attitude(target: np.ndarray) -> tuple[float, set[str]]:
     """By brute force on the closed form: the bucket cylinder's length swept over its range (61
     values, then Brent's method about the best), at each the boom and arm lengths that put the tip
@@ -104,7 +121,7 @@ def _largest_over_the_attitude(target: np.ndarray) -> tuple[float, set[str]]:
     from scipy.optimize import fsolve, minimize_scalar
 
     ranges = [(1.7352, 3.0649), (1.8164, 3.2939), (1.6529, 2.6613)]  # boom, arm, bucket (models/excavator.yaml)
-    coarse = [(b, a) for b in np.linspace(*ranges[0], 25) for a in np.linspace(*ranges[1], 25)]
+    coarse = COARSE
 
     def tip(lengths) -> np.ndarray:  # a loop that cannot close: far from any target
         try:
@@ -120,7 +137,7 @@ def _largest_over_the_attitude(target: np.ndarray) -> tuple[float, set[str]]:
     found: list[tuple[float, float, str, np.ndarray]] = []
     guess = None
     for bucket in np.linspace(*ranges[2], 61):
-        start = guess if guess is not None else min(coarse, key=lambda g: np.linalg.norm(tip([*g, bucket]) - target))
+        start = guess if guess is not None else coarse[int(np.argmin(np.linalg.norm(_coarse_tips(bucket) - target, axis=1)))]
         x = placed(bucket, start)
         if x is None:
             guess = None
