@@ -22,6 +22,10 @@ GENERATED = ROOT / "generated"
 #: between runs: a committed module is verified by regenerating it once, not in every process
 os.environ["KINEGEN_TRUST"] = str(ROOT / ".pytest_cache" / "kinegen-trust")
 
+#: The slider crank (models/slider_crank.yaml) at top dead centre, its stored quaternion coordinates: crank
+#: and rod along x, the slider at x = r + l = 0.8 m, where Phi_q loses rank (a mechanism singularity).
+SLIDER_CRANK_DEAD_CENTRE = (0, 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 1, 0, 0, 0, 0.8, 0, 0, 1, 0, 0, 0.0)
+
 #: A four-bar whose links cannot close (coupler 0.5 between points 2.3 m apart): no assembled pose.
 OPEN_LOOP = """\
 model: open_loop

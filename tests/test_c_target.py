@@ -22,7 +22,7 @@ from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
 from kinegen.runtime import Solver, SolverOptions, export, from_module, load_module
 from kinegen.runtime.native import build_library, with_solver
-from tests.conftest import GENERATED, MODELS, ROOT, chain_yaml
+from tests.conftest import GENERATED, MODELS, ROOT, SLIDER_CRANK_DEAD_CENTRE, chain_yaml
 
 CC = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler")
@@ -109,7 +109,7 @@ def test_the_input_effects_in_c_are_the_numpy_paths_and_central_differences_of_s
             moved = (native.body_coordinates(ahead, body)[:3] - native.body_coordinates(behind, body)[:3]) / (2 * h)
             assert np.abs(moved - native.body_coordinates(by_c[20, :, j], body, velocity=True)[:3]).max() <= 1e-7, (j, body)
     _, crank = systems("slider_crank_quaternion", "dead_centre")
-    dead_centre = np.array([0, 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 1, 0, 0, 0, 0.8, 0, 0, 1, 0, 0, 0.0])
+    dead_centre = np.array(SLIDER_CRANK_DEAD_CENTRE)
     at_start = crank.driver_inputs(np.array([crank.t0]))[0][:, 0]
     away = Solver(crank).solve(np.array([crank.t0])).q[0]
     effects = crank.native.input_effects(np.column_stack([away, dead_centre]), np.column_stack([at_start, [0.8]]))

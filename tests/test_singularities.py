@@ -23,7 +23,7 @@ from kinegen.codegen.inmemory import lambdify_model
 from kinegen.model import loads
 from kinegen.runtime import from_module, solve
 from kinegen.symbolic.blocks import block_triangular
-from tests.conftest import generated_system, model
+from tests.conftest import SLIDER_CRANK_DEAD_CENTRE, generated_system, model
 
 ALL_REVOLUTE_FOUR_BAR = """\
 model: four_bar_rrrr
@@ -74,7 +74,7 @@ def test_boom_euler_singularity_is_a_representation_singularity():
 
 
 def test_slider_crank_dead_centre_is_a_mechanism_singularity_in_every_parametrization():
-    dead_centre = np.array([0, 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 1, 0, 0, 0, 0.8, 0, 0, 1, 0, 0, 0.0])
+    dead_centre = np.array(SLIDER_CRANK_DEAD_CENTRE)
     slider_crank = model("slider_crank")
     verdict = classify(
         slider_crank,
