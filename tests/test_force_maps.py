@@ -95,21 +95,25 @@ def reached():
     return reach_map(generated_system("excavator_quaternion", "digging"), model("excavator"))
 
 
-#: the boom and arm lengths of the brute force's coarse start (25 x 25 over their ranges in models/excavator.yaml)
-COARSE = [(b, a) for b in np.linspace(1.7352, 3.0649, 25) for a in np.linspace(1.8164, 3.2939, 25)]
+#: the boom, arm and bucket cylinders' length ranges (models/excavator.yaml)
+RANGES = [(1.7352, 3.0649), (1.8164, 3.2939), (1.6529, 2.6613)]
+#: the boom and arm lengths of the brute force's coarse start (25 x 25 over their ranges)
+COARSE = [(b, a) for b in np.linspace(*RANGES[0], 25) for a in np.linspace(*RANGES[1], 25)]
+
+
+def _tip_or_far(lengths) -> np.ndarray:
+    """The closed-form tip (x, z), or far from any target where the loop cannot close."""
+    try:
+        return _tip(np.asarray(lengths, dtype=float))
+    except ValueError:
+        return np.array([1e3, 1e3])
 
 
 @functools.cache
 def _coarse_tips(bucket: float) -> np.ndarray:
     """The closed-form tip (x, z) at every coarse (boom, arm) start with this bucket length, (625, 2)
     (far away where the loop cannot close): the same for every target, so computed once per length."""
-    tips = []
-    for boom, arm in COARSE:
-        try:
-            tips.append(_tip(np.array([boom, arm, bucket])))
-        except ValueError:
-            tips.append(np.array([1e3, 1e3]))
-    return np.array(tips)
+    return np.array([_tip_or_far([boom, arm, bucket]) for boom, arm in COARSE])
 
 
 def _largest_over_the_attitude(target: np.ndarray) -> tuple[float, set[str]]:
@@ -120,14 +124,7 @@ def _largest_over_the_attitude(target: np.ndarray) -> tuple[float, set[str]]:
     length at which the limit passes from one to the other)."""
     from scipy.optimize import fsolve, minimize_scalar
 
-    ranges = [(1.7352, 3.0649), (1.8164, 3.2939), (1.6529, 2.6613)]  # boom, arm, bucket (models/excavator.yaml)
-    coarse = COARSE
-
-    def tip(lengths) -> np.ndarray:  # a loop that cannot close: far from any target
-        try:
-            return _tip(np.asarray(lengths, dtype=float))
-        except ValueError:
-            return np.array([1e3, 1e3])
+    ranges, tip = RANGES, _tip_or_far
 
     def placed(bucket: float, guess) -> np.ndarray | None:
         x, _, ok, _ = fsolve(lambda v: tip([v[0], v[1], bucket]) - target, guess, full_output=True, xtol=1e-13)
@@ -137,7 +134,7 @@ def _largest_over_the_attitude(target: np.ndarray) -> tuple[float, set[str]]:
     found: list[tuple[float, float, str, np.ndarray]] = []
     guess = None
     for bucket in np.linspace(*ranges[2], 61):
-        start = guess if guess is not None else coarse[int(np.argmin(np.linalg.norm(_coarse_tips(bucket) - target, axis=1)))]
+        start = guess if guess is not None else COARSE[int(np.argmin(np.linalg.norm(_coarse_tips(bucket) - target, axis=1)))]
         x = placed(bucket, start)
         if x is None:
             guess = None
