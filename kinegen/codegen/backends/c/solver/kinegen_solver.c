@@ -311,8 +311,8 @@ static int factor(kinegen_solver *s, const double *jac) {
     return !(low > s->options.singular_tolerance * fmax(high, 1e-300));
 }
 
-/* r = A^-1 r for one n x n block's LU factors A (column-major) and pivots piv (through BY_BLOCK_SIZE). */
-static inline void solve_block(const double *A, const int *piv, double *r, const int n) {
+/* The row interchanges of one n x n block's LU (pivots piv) applied to r, in their order. */
+static inline void interchange(const int *piv, double *r, const int n) {
     for (int k = 0; k < n; ++k) {
         if (piv[k] != k) {
             double tmp = r[k];
@@ -320,6 +320,11 @@ static inline void solve_block(const double *A, const int *piv, double *r, const
             r[piv[k]] = tmp;
         }
     }
+}
+
+/* r = A^-1 r for one n x n block's LU factors A (column-major) and pivots piv (through BY_BLOCK_SIZE). */
+static inline void solve_block(const double *A, const int *piv, double *r, const int n) {
+    interchange(piv, r, n);
     for (int k = 0; k < n; ++k)
         for (int i = k + 1; i < n; ++i) r[i] -= A[i + k * n] * r[k];
     for (int k = n - 1; k >= 0; --k) {
@@ -328,13 +333,26 @@ static inline void solve_block(const double *A, const int *piv, double *r, const
     }
 }
 
-/* x = Phi_q^-1 b with the current factors (x and b may alias). */
-static void solve(kinegen_solver *s, const double *b, double *x) {
-    const kinegen_model *m = s->model;
-    if (m->solve != NULL) { /* the case's own, straight-line: ~0.35 against ~1 us for the excavator's */
-        m->solve(s->store, s->off, s->pivots, b, x, s->y);
-        return;
+/* r = an upper bound on |A^-1| r for r >= 0, from one n x n block's LU factors A and pivots piv (through
+ * BY_BLOCK_SIZE): M(U)^-1 M(L)^-1 P r, M the comparison matrix (|diagonal|, -|off-diagonal|). For a
+ * triangular T, |T^-1| <= M(T)^-1 entry by entry (Higham, Accuracy and Stability of Numerical Algorithms,
+ * 2nd ed., Theorem 8.12), and |A^-1| = |U^-1 L^-1 P| <= |U^-1| |L^-1| P. */
+static inline void bound_block(const double *A, const int *piv, double *r, const int n) {
+    interchange(piv, r, n);
+    for (int k = 0; k < n; ++k)
+        for (int i = k + 1; i < n; ++i) r[i] += fabs(A[i + k * n]) * r[k];
+    for (int k = n - 1; k >= 0; --k) {
+        r[k] /= fabs(A[k + k * n]);
+        for (int i = 0; i < k; ++i) r[i] += fabs(A[i + k * n]) * r[k];
     }
+}
+
+/* The block forward substitution over the current factors, x from b (x and b may alias): y = Phi_q^-1 b
+ * (bound = 0: each block's rows less the entries below the blocks times the earlier blocks' solution, then
+ * solve_block), or an upper bound on |Phi_q^-1| b for b >= 0 (bound = 1: the same in absolute values, the
+ * entries below added, then bound_block). */
+static void substitute(kinegen_solver *s, const double *b, double *x, int bound) {
+    const kinegen_model *m = s->model;
     double *y = s->y; /* the solution in the permuted order */
     for (int blk = 0; blk < m->n_blocks; ++blk) {
         int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
@@ -344,14 +362,31 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
         for (int i = 0; i < n; ++i) {
             int row = first + i;
             double acc = b[m->row_order[row]];
-            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) acc -= s->off[e] * y[m->off_col[e]];
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e)
+                acc += (bound ? fabs(s->off[e]) : -s->off[e]) * y[m->off_col[e]];
             r[i] = acc;
         }
+        if (bound) {
+#define BOUND_BLOCK(N) bound_block(A, piv, r, N)
+            BY_BLOCK_SIZE(n, BOUND_BLOCK)
+#undef BOUND_BLOCK
+        } else {
 #define SOLVE_BLOCK(N) solve_block(A, piv, r, N)
-        BY_BLOCK_SIZE(n, SOLVE_BLOCK)
+            BY_BLOCK_SIZE(n, SOLVE_BLOCK)
 #undef SOLVE_BLOCK
+        }
     }
     for (int j = 0; j < m->n_v; ++j) x[m->col_order[j]] = y[j];
+}
+
+/* x = Phi_q^-1 b with the current factors (x and b may alias). */
+static void solve(kinegen_solver *s, const double *b, double *x) {
+    const kinegen_model *m = s->model;
+    if (m->solve != NULL) { /* the case's own, straight-line: ~0.35 against ~1 us for the excavator's */
+        m->solve(s->store, s->off, s->pivots, b, x, s->y);
+        return;
+    }
+    substitute(s, b, x, 0);
 }
 
 /* W's columns solved together by the certificate (the Hermite bound's three changes fit) */
@@ -431,6 +466,11 @@ static void solve_columns(kinegen_solver *s, double *b, int used, double *y) {
     for (int j = 0; j < nv; ++j)
         for (int c = 0; c < count; ++c) b[(size_t)c * nv + m->col_order[j]] = y[(size_t)j * count + c];
 }
+
+/* x = an upper bound on |Phi_q^-1| b for b >= 0 (entry by entry) from the current factors (x and b may
+ * alias): substitute's pass in absolute values. Coarse -- it loses every cancellation: ~10^3-10^4 times
+ * |Phi_q^-1| b on chain-50's and the excavator's steps -- and one pass over the factors. */
+static void solve_bound(kinegen_solver *s, const double *b, double *x) { substitute(s, b, x, 1); }
 
 /* r = A^-T r for one block's LU factors A and pivots piv (through BY_BLOCK_SIZE). */
 static inline void solve_block_transposed(const double *A, const int *piv, double *r, const int n) {
@@ -624,14 +664,21 @@ static double chord_deviation(const double *ranges, int ni, int k, double h, dou
  * W = J1^-1 Phi_u (the factors in store), as input_effect in kinegen/runtime/solver.py:
  *   the case's own time functions (options.case_inputs): u(s) - u1 = -(1 - r) D + e(s), |e_k| <= the chord
  *     deviation c_k over the step's enclosures, so at most |W D| + |sum_k |W_k| c_k|; s->branch_input: the
- *     input that contributes most. Phi_u's columns come from one nu call: driver k's equation is row
+ *     input that contributes most. First coarsely, from two solves whatever the number of inputs: |W D| from
+ *     one solve of Phi_u D, and sum_k |W_k| c_k <= |Phi_q^-1| |Phi_u| c bounded by solve_bound. That value
+ *     is returned when it is below `allowed` (what the step's bound allows the effect) by a margin of 1e-12
+ *     of it: it is never below the exact one, so a step it certifies the exact bound certifies too. |W D|
+ *     alone is returned when it is above `allowed` by that margin and this is not the last try (`last_try`:
+ *     where the refusal names the input): the exact bound is at least |W D|, so it would refuse the step
+ *     too. Otherwise the exact bound, column by column. The same steps are accepted and refused either way. Phi_u's columns come from one nu call: driver k's equation is row
  *     n_v - n_inputs + k (the drivers' rows come last, in the inputs' order; kinegen_model) and depends on
  *     u_k alone, so nu(q, u, 1) holds column k's one value in that row, the same value nu(q, u, e_k) gives
  *     there (one call a step, not one per moving input: chain-50 217 -> 179 us a step);
  *   tabulated inputs: along the cubic Hermite path of the values and rates at both ends, u(s) - u1 =
  *     -(1 - r) D + r (1 - r)^2 A - r^2 (1 - r) B, so at most |W D| + 4/27 (|W A| + |W B|).
  * Work: s->cert (10 n_v + 7 n_inputs doubles), s->moving, s->x (n_inputs), s->w2 (n_v). */
-static double input_effect(kinegen_solver *s, double t, double h, const double *u, const double *ud) {
+static double input_effect(kinegen_solver *s, double t, double h, const double *u, const double *ud, double allowed,
+                           int last_try) {
     const kinegen_model *m = s->model;
     int nv = m->n_v, ni = m->n_inputs;
     double *w = s->x; /* n_inputs <= n_v values */
@@ -653,6 +700,24 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
         }
         for (int i = 0; i < ni; ++i) w[i] = 1.0;
         nu(s, s->trial, u, w, s->w2); /* -Phi_u 1: -dPhi/du_k in driver k's row, n_v - n_inputs + k */
+        if (count > 1) { /* the coarse bound (with one input it is no cheaper than the exact) */
+            double *effect = columns, *deviations = columns + nv;
+            int finite = 1;
+            memset(columns, 0, sizeof(double) * 2 * (size_t)nv);
+            for (int c = 0; c < count; ++c) {
+                int k = moving[c], row = nv - ni + k;
+                effect[row] = s->w2[row] * (u[k] - s->u[k]);
+                deviations[row] = fabs(s->w2[row]) * deviation[k];
+                finite &= isfinite(deviation[k]);
+            }
+            if (finite) {
+                solve(s, effect, effect);
+                solve_bound(s, deviations, deviations);
+                double change = max_abs(effect, nv), coarse = change + max_abs(deviations, nv);
+                if (coarse <= allowed * (1.0 - 1e-12)) return coarse; /* (NaN is neither) */
+                if (!last_try && change >= allowed + 1e-12 * fabs(allowed)) return change;
+            }
+        }
         for (int first = 0; first < count; first += CERTIFY_COLUMNS) {
             int group = count - first < CERTIFY_COLUMNS ? count - first : CERTIFY_COLUMNS;
             memset(columns, 0, sizeof(double) * CERTIFY_COLUMNS * (size_t)nv);
@@ -697,8 +762,9 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
 
 /* The step's certificate (see kinegen_options in kinegen_solver.h) for the converged s->trial at
  * the new inputs u, ud at t, a step of h from the state (q, u, ud at s->t): the factors in store are
- * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there. KINEGEN_OK or KINEGEN_BRANCH. */
-static int certify(kinegen_solver *s, double t, double h, const double *u, const double *ud) {
+ * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there; last_try: a refusal is final (no halving follows),
+ * so it names the input (branch_input). KINEGEN_OK or KINEGEN_BRANCH. */
+static int certify(kinegen_solver *s, double t, double h, const double *u, const double *ud, int last_try) {
     const kinegen_model *m = s->model;
     int nv = m->n_v;
     s->branch_block = -1;
@@ -720,17 +786,19 @@ static int certify(kinegen_solver *s, double t, double h, const double *u, const
         solve(s, s->w1, s->w1);
         omega = s->options.safety * max_abs(s->w1, nv) / (distance * distance);
     }
-    /* alpha: Newton's last correction, plus the inputs' effect over the step */
-    double alpha = max_abs(s->step, nv) + input_effect(s, t, h, u, ud);
+    /* alpha: Newton's last correction, plus the inputs' effect over the step (what alpha omega <= 1/2 allows
+     * that effect: its coarse bounds are decisive only away from it) */
+    double correction = max_abs(s->step, nv);
+    double alpha = correction + input_effect(s, t, h, u, ud, omega > 0.0 ? 0.5 / omega - correction : INFINITY, last_try);
     s->bound = alpha * omega;
     if (!(s->bound <= 0.5 && omega * distance < 1.0)) return KINEGEN_BRANCH;
     return KINEGEN_OK;
 }
 
 /* From a converged s->trial (phi, jac at it): factors, the certificate (certify_h > 0: the step's
- * length), polish, v, a; commit the state. */
+ * length; last_try as certify's), polish, v, a; commit the state. */
 static int finish(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int count, double norm,
-                  double certify_h) {
+                  double certify_h, int last_try) {
     const kinegen_model *m = s->model;
     const kinegen_options *o = &s->options;
     int n = m->n_v;
@@ -738,7 +806,7 @@ static int finish(kinegen_solver *s, double t, const double *u, const double *ud
     solve(s, s->phi, s->step); /* the polishing correction */
     for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
     if (certify_h > 0.0 && o->keep_branch) {
-        int status = certify(s, t, certify_h, u, ud);
+        int status = certify(s, t, certify_h, u, ud, last_try);
         if (status != KINEGEN_OK) {
             s->have_factors = 0;
             return status;
@@ -775,11 +843,12 @@ int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u
         return status;
     }
     s->refinements = 0;
-    return finish(s, t, u, ud, udd, count, norm, 0.0);
+    return finish(s, t, u, ud, udd, count, norm, 0.0, 1);
 }
 
-/* One try at the whole step to t: predictor, Newton, certificate. */
-static int attempt(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int *iterations) {
+/* One try at the whole step to t: predictor, Newton, certificate (last_try: no halving follows a refusal). */
+static int attempt(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int *iterations,
+                   int last_try) {
     const kinegen_model *m = s->model;
     int n = m->n_v, count, status;
     double travel, norm, h = t - s->t;
@@ -794,7 +863,7 @@ static int attempt(kinegen_solver *s, double t, const double *u, const double *u
         s->have_factors = 0;
         return status;
     }
-    status = finish(s, t, u, ud, udd, count, norm, h);
+    status = finish(s, t, u, ud, udd, count, norm, h, last_try);
     if (status == KINEGEN_OK) s->iterations = *iterations += count; /* the accepted pieces' iterations, as Python counts */
     return status;
 }
@@ -854,7 +923,7 @@ static int advance(kinegen_solver *s, double t, const double *u, const double *u
             }
             pu = inputs, pud = inputs + ni, pudd = inputs + 2 * ni;
         }
-        int status = attempt(s, end, pu, pud, pudd, iterations);
+        int status = attempt(s, end, pu, pud, pudd, iterations, level >= limit);
         if (status == KINEGEN_OK) {
             if (last) return KINEGEN_OK;
             for (++piece; level > 0 && piece % 2 == 0; --level) piece /= 2; /* a second half done: its whole is */

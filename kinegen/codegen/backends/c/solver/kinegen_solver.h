@@ -311,7 +311,8 @@ typedef struct kinegen_solver {
     int *factor_block_sign; /* ... of the factors in store */
     int refinements;        /* halvings the last kinegen_step took (0: the whole step was certified) */
     int branch_block;       /* after KINEGEN_BRANCH: the block whose determinant changed sign, or -1 (the bound failed) */
-    double bound;           /* alpha omega of the last certified (or refused) step (infinite: it moved too far) */
+    double bound;           /* alpha omega of the last certified (or refused) step (infinite: it moved too far); a
+                               certified one's may hold the inputs' coarse bound (input_effect, kinegen_solver.c) */
     double branch_time;     /* after KINEGEN_BRANCH: the start of the shortest step tried */
     double *cert;           /* the certificate's work: 10 n_v + 7 n_inputs doubles */
     int branch_input;       /* after KINEGEN_BRANCH: the input that contributed most to the refused bound, or -1 */
