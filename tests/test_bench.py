@@ -113,3 +113,16 @@ def test_band_lu_solves_like_dense_lu_on_a_chain_pattern():
         factors, _ = solver.factor(values)
         assert np.abs(solver.solve(factors, rhs) - expected).max() < 1e-9 * np.abs(expected).max()
         assert abs(1 / solver.rcond(factors, values) / np.linalg.cond(matrix, 1) - 1) < 10  # an estimate
+
+
+def test_the_c_targets_memory_row_counts_the_step_and_a_kernel():
+    """The benchmark's memory row of one standalone C solver (chain-3): workspace, struct and static
+    tables measured by the compiler's sizes, and the step's stack from gcc's call graph -- the solver's
+    deepest chain from kinegen_step plus the deepest kernel it calls through the kernel table, found
+    whether or not -O2 inlined the kernel into its table entry (call_<kernel>); within the 4 kB the
+    standalone target keeps a step to."""
+    from kinegen.bench.contenders import c_target_memory
+
+    memory = c_target_memory("chain-3")
+    assert memory["workspace"] > 0 and memory["struct"] > 0 and memory["static"] > 0
+    assert 0 < memory["stack"] <= 4096, memory
