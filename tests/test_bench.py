@@ -115,6 +115,33 @@ def test_band_lu_solves_like_dense_lu_on_a_chain_pattern():
         assert abs(1 / solver.rcond(factors, values) / np.linalg.cond(matrix, 1) - 1) < 10  # an estimate
 
 
+def test_both_factorizations_bound_the_inverses_absolute_values_from_their_factors():
+    """The certificate's coarse bound in Python (linear's ``bound``: the factors' comparison matrices
+    solved by getrs or gbtrs) is at least |Phi_q^-1| b for b >= 0, entry by entry: chain-14's Phi_q
+    at its solved start, band and dense, every unit vector (each column of |Phi_q^-1|) and a positive
+    one; against NumPy's inverse. Coarse by design: loose somewhere."""
+    from kinegen.bench.chain import chain_yaml
+    from kinegen.codegen.inmemory import lambdify_model
+    from kinegen.model import loads
+    from kinegen.rotations import get
+    from kinegen.runtime import Solver, from_module
+
+    system = from_module(lambdify_model(loads(chain_yaml(14, 1.0, 3), "chain14.yaml"), get("euler-parameters")))
+    n = system.n_velocity
+    rng = np.random.default_rng(8)
+    start = Solver(system).solve(np.array([system.t0]))
+    values = system.evaluate(start.q[0], start.inputs[0])[1]
+    band, dense = choose(system.jac_rows, system.jac_cols, (n, n)), DenseLU(system.jac_rows, system.jac_cols, (n, n))
+    assert isinstance(band, BandLU)
+    inverse = np.abs(np.linalg.inv(dense.dense(values)))
+    for solver in (band, dense):
+        factors, _ = solver.factor(values)
+        for b in [*np.eye(n), rng.uniform(0.5, 1.5, n)]:
+            exact, bound = inverse @ b, solver.bound(factors, b)
+            assert np.isfinite(bound).all() and (bound >= exact - 1e-12 * exact.max()).all(), type(solver).__name__
+        assert (solver.bound(factors, np.ones(n)) > 1.5 * (inverse @ np.ones(n))).any()
+
+
 def test_the_c_targets_memory_row_counts_the_step_and_a_kernel():
     """The benchmark's memory row of one standalone C solver (chain-3): workspace, struct and static
     tables measured by the compiler's sizes, and the step's stack from gcc's call graph -- the solver's

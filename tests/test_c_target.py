@@ -212,18 +212,22 @@ def test_near_the_toggle_the_c_loop_halves_its_own_steps_and_the_branch_is_kept(
     assert not unrefined.converged.all()
 
 
-def test_on_a_coarse_grid_the_c_certificate_accepts_and_refuses_the_steps_python_does():
-    """The excavator's digging cycle on 41 points, its three inputs moving in every step: the C
-    certificate first tries the inputs' coarse bounds (two solves, kinegen_solver.c's input_effect) and
-    falls back to the exact one, column by column, when they decide nothing. On this grid all three
-    happen (measured: of 101 certificates, 25 accepted by the coarse bound, 16 refused by |W D| alone,
-    60 decided by the exact bound; 36 halvings). Python's certificate is the exact one at every step:
-    the same steps are halved into the same pieces, and the poses agree."""
+def test_on_a_coarse_grid_the_certificates_coarse_bounds_accept_and_refuse_what_the_exact_one_does(monkeypatch):
+    """The excavator's digging cycle on 41 points, its inputs moving in every step: the certificate
+    first tries the inputs' coarse bounds (two solves: kinegen_solver.c's input_effect, Python's
+    Solver._coarse_effect) and computes the exact one, column by column, when they decide nothing. On
+    this grid all three happen (measured in C: of 101 certificates, 25 accepted by the coarse bound,
+    16 refused by |W D| alone, 60 decided by the exact bound; 36 halvings). The reference is Python's
+    certificate with the coarse bounds switched off: Python with them takes the same steps to the bit,
+    C halves the same steps into the same pieces, and the poses agree."""
     python, native = systems("excavator_quaternion", "digging")
     times = np.linspace(native.t0, native.t1, 41)
-    reference, compiled = Solver(python).solve(times), Solver(native).solve(times)
+    screened, compiled = Solver(python).solve(times), Solver(native).solve(times)
+    monkeypatch.setattr(Solver, "_coarse_effect", lambda *args: None)
+    reference = Solver(python).solve(times)
     assert compiled.converged.all() and reference.converged.all()
-    assert (compiled.iterations > 4).any()  # steps were halved (their pieces' iterations add up)
+    assert (reference.iterations > 4).any()  # steps were halved (their pieces' iterations add up)
+    assert np.array_equal(screened.iterations, reference.iterations) and np.array_equal(screened.q, reference.q)
     assert np.array_equal(compiled.iterations, reference.iterations)
     assert np.abs(reference.q - compiled.q).max() < 1e-9
 

@@ -660,7 +660,8 @@ class Solver:
             if opts.keep_branch and (factors.lu is not None or factors.pinv is not None):  # pinv: redundant, least squares
                 moved = None if solution.moved is None else motion + solution.moved
                 ranges = None if ranges_of is None else ranges_of(t0, t1)
-                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs, ranges)
+                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs, ranges,
+                                         last_try=depth >= self.options.max_refinements)
         except (ConvergenceError, SingularJacobianError):
             if depth >= self.options.max_refinements or not self.options.keep_branch:
                 raise
@@ -677,7 +678,7 @@ class Solver:
         return second._replace(iterations=first.iterations + second.iterations), factors
 
     def _certify(self, previous: Factors, solution: Solution, factors: Factors, moved, h: float, start_inputs, inputs,
-                 ranges: np.ndarray | None = None) -> str | None:  # fmt: skip
+                 ranges: np.ndarray | None = None, last_try: bool = True) -> str | None:  # fmt: skip
         """None when the step from x0 (Phi_q values and factors ``previous``) to Newton's solution x1
         (``solution``, factors of its Phi_q in ``factors``; ``moved`` = x1 - x0 in velocity
         coordinates) over a time step h is certified to continue x0; else what was observed.
@@ -694,7 +695,9 @@ class Solver:
 
         If alpha omega <= 1/2 and omega |d| < 1, the Newton-Kantorovich theorem gives every
         Phi(., u(s)) exactly one zero in the ball of radius 1/omega about x1; these zeros form one
-        continuous path, x1 is its end and x0 (a zero at t0 inside the ball) its start.
+        continuous path, x1 is its end and x0 (a zero at t0 inside the ball) its start. The inputs'
+        term is first bounded coarsely (:meth:`_coarse_effect`), which decides the same steps;
+        ``last_try``: a refusal here is final, so it names the input.
         """
         signs = self._block_signs(factors)
         before = self._block_signs(previous)
@@ -738,8 +741,10 @@ class Solver:
                 out[:, j] = self._solve(factors, unit)
             return out
 
-        effect, worst = input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
-        alpha = float(abs(self._solve(factors, solution.phi)).max()) + effect
+        correction = float(abs(self._solve(factors, solution.phi)).max())
+        coarse = self._coarse_effect(factors, x1, u1, h, start_inputs[0], ranges, 0.5 / omega - correction if omega > 0 else np.inf, last_try)
+        effect, worst = (coarse, None) if coarse is not None else input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
+        alpha = correction + effect
         bound = alpha * omega
         if bound <= 0.5 and omega * distance < 1.0:
             return None
@@ -751,6 +756,38 @@ class Solver:
             + (f"the input {name} moves too much within the step ({worst[1]}), " if name else "the inputs change faster than the step can follow, ")
             + f"or a singular pose is near; {self._worst_block(factors)}"
         )
+
+    def _coarse_effect(self, factors: Factors, x1: np.ndarray, u1: np.ndarray, h: float, u0: np.ndarray, ranges: np.ndarray | None,
+                       allowed: float, last_try: bool) -> float | None:  # fmt: skip
+        """The inputs' term of the certificate from two solves, whatever the number of inputs (the C
+        solver's, kinegen_solver.c's input_effect): |W D| from one solve of Phi_u D, and
+        sum_k |W_k| c_k <= |Phi_q^-1| |Phi_u| c by the factors' comparison matrices
+        (:func:`kinegen.runtime.linear.comparison`). Returned when their sum is below ``allowed`` (what
+        alpha omega <= 1/2 leaves the term) by 1e-12 of it -- never below the exact bound, so the exact
+        one certifies that step too --, or |W D| alone when it is above ``allowed`` by that margin and
+        this is not the last try -- the exact bound is at least |W D|, so it refuses that step too.
+        None when they decide nothing (or do not apply: tabulated inputs, fewer than two inputs moving,
+        an input that nothing bounds, least squares): the exact bound decides."""
+        if ranges is None or factors.lu is None:
+            return None
+        system = self.system
+        change = u1 - u0
+        deviation = chord_deviation(ranges, h, u1, change)
+        moving = np.flatnonzero((change != 0) | (deviation != 0))
+        if moving.size < 2 or not np.isfinite(deviation[moving]).all():
+            return None
+        rates = system.velocity_rhs(x1, u1, np.ones(system.n_inputs))  # driver k's row holds its one value (columns())
+        rows = len(rates) - system.n_inputs + moving
+        effect, spread = np.zeros_like(rates), np.zeros_like(rates)
+        effect[rows], spread[rows] = rates[rows] * change[moving], np.abs(rates[rows]) * deviation[moving]
+        with np.errstate(all="ignore"):
+            changed = float(abs(self._solve(factors, effect)).max())
+            coarse = changed + float(self.linear.bound(factors.lu, spread).max())
+            if coarse <= allowed * (1.0 - 1e-12):  # (NaN is neither)
+                return coarse
+            if not last_try and changed >= allowed + 1e-12 * abs(allowed):
+                return changed
+        return None
 
     def _block_signs(self, factors: Factors) -> np.ndarray | None:
         """Sign of det of every diagonal block of Phi_q (its rows and columns in the blocks' fixed order)."""
