@@ -14,8 +14,9 @@ from __future__ import annotations
 import dataclasses
 import gc
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -723,15 +724,18 @@ class Solver:
             )
         x1, u1 = solution.q, inputs[0]
 
-        def columns(which: np.ndarray) -> np.ndarray:
-            """W's columns ``which`` (n_v, len(which)): J1^-1 Phi_u e_k, up to one sign for all.
+        @cache
+        def driver_rates() -> np.ndarray:
+            """-Phi_u 1: driver k's equation is the row n_v - n_inputs + k and depends on u_k alone
+            (NumericSystem checks the order), so one nu(q, u, 1) holds every column of Phi_u: its one
+            value, in that row (the value nu(q, u, e_k) gives there)."""
+            return system.velocity_rhs(x1, u1, np.ones(system.n_inputs))
 
-            Driver k's equation is the row n_v - n_inputs + k and depends on u_k alone
-            (NumericSystem checks the order), so one nu(q, u, 1) holds every column of Phi_u: its
-            one value, in that row (the value nu(q, u, e_k) gives there)."""
+        def columns(which: np.ndarray) -> np.ndarray:
+            """W's columns ``which`` (n_v, len(which)): J1^-1 Phi_u e_k, up to one sign for all."""
             if not which.size:
                 return np.zeros((system.n_velocity, 0))
-            rates = system.velocity_rhs(x1, u1, np.ones(system.n_inputs))
+            rates = driver_rates()
             first = len(rates) - system.n_inputs
             out = np.zeros((system.n_velocity, which.size))
             for j, k in enumerate(which):
@@ -742,7 +746,8 @@ class Solver:
             return out
 
         correction = float(abs(self._solve(factors, solution.phi)).max())
-        coarse = self._coarse_effect(factors, x1, u1, h, start_inputs[0], ranges, 0.5 / omega - correction if omega > 0 else np.inf, last_try)
+        allowed = 0.5 / omega - correction if omega > 0 else np.inf
+        coarse = self._coarse_effect(factors, driver_rates, u1, h, start_inputs[0], ranges, allowed, last_try)
         effect, worst = (coarse, None) if coarse is not None else input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
         alpha = correction + effect
         bound = alpha * omega
@@ -757,8 +762,8 @@ class Solver:
             + f"or a singular pose is near; {self._worst_block(factors)}"
         )
 
-    def _coarse_effect(self, factors: Factors, x1: np.ndarray, u1: np.ndarray, h: float, u0: np.ndarray, ranges: np.ndarray | None,
-                       allowed: float, last_try: bool) -> float | None:  # fmt: skip
+    def _coarse_effect(self, factors: Factors, driver_rates: Callable[[], np.ndarray], u1: np.ndarray, h: float, u0: np.ndarray,
+                       ranges: np.ndarray | None, allowed: float, last_try: bool) -> float | None:  # fmt: skip
         """The inputs' term of the certificate from two solves, whatever the number of inputs (the C
         solver's, kinegen_solver.c's input_effect): |W D| from one solve of Phi_u D, and
         sum_k |W_k| c_k <= |Phi_q^-1| |Phi_u| c by the factors' comparison matrices
@@ -767,7 +772,8 @@ class Solver:
         one certifies that step too --, or |W D| alone when it is above ``allowed`` by that margin and
         this is not the last try -- the exact bound is at least |W D|, so it refuses that step too.
         None when they decide nothing (or do not apply: tabulated inputs, fewer than two inputs moving,
-        an input that nothing bounds, least squares): the exact bound decides."""
+        an input that nothing bounds, least squares): the exact bound decides. ``driver_rates()``:
+        -Phi_u 1 at the solution (the exact bound's columns take the same values)."""
         if ranges is None or factors.lu is None:
             return None
         system = self.system
@@ -776,7 +782,7 @@ class Solver:
         moving = np.flatnonzero((change != 0) | (deviation != 0))
         if moving.size < 2 or not np.isfinite(deviation[moving]).all():
             return None
-        rates = system.velocity_rhs(x1, u1, np.ones(system.n_inputs))  # driver k's row holds its one value (columns())
+        rates = driver_rates()  # -Phi_u 1: driver k's row holds its one value
         rows = len(rates) - system.n_inputs + moving
         effect, spread = np.zeros_like(rates), np.zeros_like(rates)
         effect[rows], spread[rows] = rates[rows] * change[moving], np.abs(rates[rows]) * deviation[moving]
