@@ -660,6 +660,19 @@ static double chord_deviation(const double *ranges, int ni, int k, double h, dou
     return isnan(bound) ? INFINITY : bound;
 }
 
+/* |Phi_u| c over the moving inputs from `first` on (moving[first .. count - 1]), c their chord deviations: in
+ * driver k's row (n_v - n_inputs + k), |-Phi_u 1| there (s->w2, nu's) times c_k; zero elsewhere. What the
+ * coarse bound of their spread sum_k |W_k| c_k is taken of (solve_bound). */
+static void spread_rhs(const kinegen_solver *s, const int *moving, int first, int count, const double *deviation,
+                       double *out) {
+    int nv = s->model->n_v, ni = s->model->n_inputs;
+    memset(out, 0, sizeof(double) * (size_t)nv);
+    for (int c = first; c < count; ++c) {
+        int row = nv - ni + moving[c];
+        out[row] = fabs(s->w2[row]) * deviation[moving[c]];
+    }
+}
+
 /* A bound on max over the step (from the state at s->t to t = s->t + h, inputs u, ud) of |W (u(s) - u1)|,
  * W = J1^-1 Phi_u (the factors in store), as input_effect in kinegen/runtime/solver.py:
  *   the case's own time functions (options.case_inputs): u(s) - u1 = -(1 - r) D + e(s), |e_k| <= the chord
@@ -674,10 +687,11 @@ static double chord_deviation(const double *ranges, int ni, int k, double h, dou
  *     each group also |W D| + the exact spread so far + the coarse bound of the rest's, returned when it is
  *     below `allowed` by that margin (chain-50, where the first inputs' columns run the whole chain and
  *     their coarse bound is the loosest: of 224 such certificates, 91 settled after 4 columns, 58 after 8,
- *     65 after 12, 10 after 16, of 50). The same steps are accepted and refused either way. Phi_u's columns come from one nu call: driver k's equation is row
- *     n_v - n_inputs + k (the drivers' rows come last, in the inputs' order; kinegen_model) and depends on
- *     u_k alone, so nu(q, u, 1) holds column k's one value in that row, the same value nu(q, u, e_k) gives
- *     there (one call a step, not one per moving input: chain-50 217 -> 179 us a step);
+ *     65 after 12, 10 after 16, of 50). The same steps are accepted and refused either way. Phi_u's columns
+ *     come from one nu call: driver k's equation is row n_v - n_inputs + k (the drivers' rows come last, in
+ *     the inputs' order; kinegen_model) and depends on u_k alone, so nu(q, u, 1) holds column k's one value
+ *     in that row, the same value nu(q, u, e_k) gives there (one call a step, not one per moving input:
+ *     chain-50 217 -> 179 us a step);
  *   tabulated inputs: along the cubic Hermite path of the values and rates at both ends, u(s) - u1 =
  *     -(1 - r) D + r (1 - r)^2 A - r^2 (1 - r) B, so at most |W D| + 4/27 (|W A| + |W B|).
  * Work: s->cert (10 n_v + 7 n_inputs doubles), s->moving, s->x (n_inputs), s->w1 and s->w2 (n_v each). */
@@ -708,13 +722,13 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
         if (count > 1) { /* the coarse bound (with one input it is no cheaper than the exact) */
             double *effect = columns, *deviations = columns + nv;
             int finite = 1;
-            memset(columns, 0, sizeof(double) * 2 * (size_t)nv);
+            memset(effect, 0, sizeof(double) * (size_t)nv);
             for (int c = 0; c < count; ++c) {
                 int k = moving[c], row = nv - ni + k;
                 effect[row] = s->w2[row] * (u[k] - s->u[k]);
-                deviations[row] = fabs(s->w2[row]) * deviation[k];
                 finite &= isfinite(deviation[k]);
             }
+            spread_rhs(s, moving, 0, count, deviation, deviations);
             if (finite) {
                 solve(s, effect, effect);
                 solve_bound(s, deviations, deviations);
@@ -757,11 +771,7 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
             int done = first + group;
             if (changed >= 0.0 && done < count) { /* the exact spread so far, the coarse bound of the rest */
                 double *rest = s->w1, top = 0.0;
-                memset(rest, 0, sizeof(double) * (size_t)nv);
-                for (int c = done; c < count; ++c) {
-                    int row = nv - ni + moving[c];
-                    rest[row] = fabs(s->w2[row]) * deviation[moving[c]];
-                }
+                spread_rhs(s, moving, done, count, deviation, rest);
                 solve_bound(s, rest, rest);
                 for (int j = 0; j < nv; ++j) top = fmax(top, spread[j] + rest[j]);
                 if (changed + top <= allowed * (1.0 - 1e-12)) return changed + top;
