@@ -276,6 +276,30 @@ def test_a_system_whose_drivers_are_not_last_is_refused(excavator):
         dataclasses.replace(system, constraint_names=names[-1:] + names[:-1])
 
 
+@pytest.mark.parametrize("case", ["digging", "level_cut"])
+def test_the_grids_chord_deviations_are_each_steps_own_and_bound_the_inputs_between_samples(excavator, case):
+    """The Python certificate takes the chord deviations of a whole grid in one pass: each step's
+    equal to the bit to its own call's (what a halved step computes), and each a bound on how far
+    the case's functions, sampled 200 times within the step, stray from the chord between its ends."""
+    from kinegen.runtime.solver import chord_deviation
+
+    system = from_module(excavator, case, compiled=False)
+    times = np.linspace(system.t0, system.t1, 41)
+    u = system.driver_inputs(times)[0]
+    ranges = np.asarray(system.input_ranges((times[:-1], times[1:])), dtype=float).reshape(-1, len(times) - 1)
+    together = chord_deviation(ranges, np.diff(times), u[:, 1:], np.diff(u, axis=1))
+    moving = 0
+    for i in range(len(times) - 1):
+        h = times[i + 1] - times[i]
+        alone = chord_deviation(ranges[:, i], h, u[:, i + 1], u[:, i + 1] - u[:, i])
+        assert np.array_equal(together[:, i], alone), i
+        fine = np.linspace(times[i], times[i + 1], 201)
+        chord = u[:, [i]] + (fine - times[i]) / h * (u[:, [i + 1]] - u[:, [i]])
+        strayed = np.abs(system.driver_inputs(fine)[0] - chord).max(axis=1)
+        assert np.isfinite(alone).all() and (strayed <= alone + 1e-15).all(), (i, strayed, alone)
+        moving += int((strayed > 0).sum())
+    assert moving > 0  # the functions do curve between samples
+
 @needs_cc
 def test_the_shipped_cases_are_never_subdivided(excavator):
     """The certificate holds for every whole step of the smooth shipped cases: no step is halved."""

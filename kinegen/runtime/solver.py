@@ -193,6 +193,7 @@ class Solver:
             if s[-1] <= self.options.singular_tolerance * s[0]:  # column rank lost: a singular pose
                 self.check_singular(jacobian, t)
             return Factors(values, pinv=np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance))
+        values = np.asarray(values, dtype=float)  # once (the generated Python's plain floats give a list): the certificate reads them too
         lu, diagonal = self.linear.factor(values)
         low, high = diagonal.min(), diagonal.max()  # NaN propagates (unlike Python's min)
         if not low > self.options.singular_tolerance * max(high, 1e-300):  # also for NaN (a NaN in Phi_q reaches U)
@@ -522,17 +523,21 @@ class Solver:
         if tabulated and k > 1:
             _warn_if_undersampled(system, times, u_all, ud_all, udd_all)
 
-        grid_ranges: list[np.ndarray] = []  # the case's inputs enclosed over every grid step, made when first needed
+        grid_deviations: list[np.ndarray] = []  # the inputs' chord deviations over every grid step, made when first needed
 
-        def ranges_of(t0: float, t1: float, i: int) -> np.ndarray | None:
-            """Enclosures of the case's inputs over [t0, t1] within grid step i (None: tabulated inputs)."""
+        def deviations_of(t0: float, t1: float, i: int, u0: np.ndarray, u1: np.ndarray) -> np.ndarray | None:
+            """Per input, its chord deviation (:func:`chord_deviation`) over [t0, t1] within grid step i, from
+            u0 at t0 to u1 at t1 (None: tabulated inputs). Over the grid's own steps every step's at once:
+            the enclosures of the case's functions in one call, the bounds in one pass (the same values)."""
             if tabulated or system.input_ranges is None:
                 return None
             if (t0, t1) != (times[i - 1], times[i]):
-                return np.asarray(system.input_ranges((np.array([t0]), np.array([t1]))), dtype=float)[:, 0]
-            if not grid_ranges:
-                grid_ranges.append(np.asarray(system.input_ranges((times[:-1], times[1:])), dtype=float).reshape(-1, k - 1))
-            return grid_ranges[0][:, i - 1]
+                ranges = np.asarray(system.input_ranges((np.array([t0]), np.array([t1]))), dtype=float)[:, 0]
+                return chord_deviation(ranges, t1 - t0, u1, u1 - u0)
+            if not grid_deviations:
+                ranges = np.asarray(system.input_ranges((times[:-1], times[1:])), dtype=float).reshape(-1, k - 1)
+                grid_deviations.append(chord_deviation(ranges, np.diff(times), u_all[:, 1:], np.diff(u_all, axis=1)).T.copy())
+            return grid_deviations[0][i - 1]
 
         def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             """Inputs at a refinement time between samples i-1 and i: the case's functions, or for
@@ -591,7 +596,7 @@ class Solver:
                         start_inputs = (u_all[:, i - 1], ud_all[:, i - 1], udd_all[:, i - 1])
                         solution, factors = self._step(
                             q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i), start_inputs,
-                            lambda t0, t1, i=i: ranges_of(t0, t1, i),
+                            lambda t0, t1, u0, u1, i=i: deviations_of(t0, t1, i, u0, u1),
                         )
                     q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
                     if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
@@ -637,11 +642,12 @@ class Solver:
             return None
         return _NativeSteps(native, self.options, self.chord, case_inputs)
 
-    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, start_inputs, ranges_of=None,
+    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, start_inputs, deviations_of=None,
               depth: int = 0) -> tuple:  # fmt: skip
         """Position at t1 from the solved state (q, v, a) at t0 (inputs ``start_inputs``), whose
-        Phi_q is factorized in ``previous``, certified to continue it (:meth:`_certify`; ``ranges_of(t0,
-        t1)``: the enclosures of the case's inputs over a step, None for tabulated inputs).
+        Phi_q is factorized in ``previous``, certified to continue it (:meth:`_certify`;
+        ``deviations_of(t0, t1, u0, u1)``: the case's inputs' chord deviations over a step from u0 to u1,
+        None for tabulated inputs).
 
         Returns the solution and the factors of its Phi_q. When the certificate fails (or Newton
         does), the interval is halved and both halves are solved in turn, up to
@@ -660,8 +666,8 @@ class Solver:
             observed = None
             if opts.keep_branch and (factors.lu is not None or factors.pinv is not None):  # pinv: redundant, least squares
                 moved = None if solution.moved is None else motion + solution.moved
-                ranges = None if ranges_of is None else ranges_of(t0, t1)
-                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs, ranges,
+                deviation = None if deviations_of is None else deviations_of(t0, t1, start_inputs[0], u)
+                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs, deviation,
                                          last_try=depth >= self.options.max_refinements)
         except (ConvergenceError, SingularJacobianError):
             if depth >= self.options.max_refinements or not self.options.keep_branch:
@@ -673,13 +679,13 @@ class Solver:
             raise BranchError(t0, t1, h, observed)
         middle = 0.5 * (t0 + t1)
         mid_inputs = inputs_at(middle)
-        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, start_inputs, ranges_of, depth + 1)
+        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, start_inputs, deviations_of, depth + 1)
         vm, am = self.rates(first.q, *mid_inputs, factors_m)
-        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, mid_inputs, ranges_of, depth + 1)
+        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, mid_inputs, deviations_of, depth + 1)
         return second._replace(iterations=first.iterations + second.iterations), factors
 
     def _certify(self, previous: Factors, solution: Solution, factors: Factors, moved, h: float, start_inputs, inputs,
-                 ranges: np.ndarray | None = None, last_try: bool = True) -> str | None:  # fmt: skip
+                 deviation: np.ndarray | None = None, last_try: bool = True) -> str | None:  # fmt: skip
         """None when the step from x0 (Phi_q values and factors ``previous``) to Newton's solution x1
         (``solution``, factors of its Phi_q in ``factors``; ``moved`` = x1 - x0 in velocity
         coordinates) over a time step h is certified to continue x0; else what was observed.
@@ -691,7 +697,7 @@ class Solver:
           Phi_q measured over the step (d = x1 - x0);
         * alpha = |J1^-1 Phi(x1, u1)| + max over the step of |J1^-1 Phi_u (u(s) - u1)| (first order in
           u), W = J1^-1 Phi_u (Phi_u w = -nu(x1, u1, w)), bounded by :func:`input_effect`: for the case's
-          own time functions over their enclosures on the step (``ranges``), for tabulated inputs along
+          own time functions from their chord deviations over the step (``deviation``), for tabulated inputs along
           the cubic Hermite path of their values and rates at both ends.
 
         If alpha omega <= 1/2 and omega |d| < 1, the Newton-Kantorovich theorem gives every
@@ -747,8 +753,8 @@ class Solver:
 
         correction = float(abs(self._solve(factors, solution.phi)).max())
         allowed = 0.5 / omega - correction if omega > 0 else np.inf
-        coarse = self._coarse_effect(factors, driver_rates, u1, h, start_inputs[0], ranges, allowed, last_try)
-        effect, worst = (coarse, None) if coarse is not None else input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
+        coarse = self._coarse_effect(factors, driver_rates, u1, start_inputs[0], deviation, allowed, last_try)
+        effect, worst = (coarse, None) if coarse is not None else input_effect(columns, h, start_inputs[:2], inputs[:2], deviation)
         alpha = correction + effect
         bound = alpha * omega
         if bound <= 0.5 and omega * distance < 1.0:
@@ -762,8 +768,8 @@ class Solver:
             + f"or a singular pose is near; {self._worst_block(factors)}"
         )
 
-    def _coarse_effect(self, factors: Factors, driver_rates: Callable[[], np.ndarray], u1: np.ndarray, h: float, u0: np.ndarray,
-                       ranges: np.ndarray | None, allowed: float, last_try: bool) -> float | None:  # fmt: skip
+    def _coarse_effect(self, factors: Factors, driver_rates: Callable[[], np.ndarray], u1: np.ndarray, u0: np.ndarray,
+                       deviation: np.ndarray | None, allowed: float, last_try: bool) -> float | None:  # fmt: skip
         """The inputs' term of the certificate from two solves, whatever the number of inputs (the C
         solver's, kinegen_solver.c's input_effect): |W D| from one solve of Phi_u D, and
         sum_k |W_k| c_k <= |Phi_q^-1| |Phi_u| c by the factors' comparison matrices
@@ -774,19 +780,16 @@ class Solver:
         None when they decide nothing (or do not apply: tabulated inputs, fewer than two inputs moving,
         an input that nothing bounds, least squares): the exact bound decides. ``driver_rates()``:
         -Phi_u 1 at the solution (the exact bound's columns take the same values)."""
-        if ranges is None or factors.lu is None:
+        if deviation is None or factors.lu is None:
             return None
-        system = self.system
         change = u1 - u0
-        deviation = chord_deviation(ranges, h, u1, change)
-        moving = np.flatnonzero((change != 0) | (deviation != 0))
-        if moving.size < 2 or not np.isfinite(deviation[moving]).all():
+        if np.count_nonzero((change != 0) | (deviation != 0)) < 2 or not np.isfinite(deviation).all():
             return None
         rates = driver_rates()  # -Phi_u 1: driver k's row holds its one value
-        rows = len(rates) - system.n_inputs + moving
+        first = len(rates) - self.system.n_inputs
         effect, spread = np.zeros_like(rates), np.zeros_like(rates)
-        effect[rows], spread[rows] = rates[rows] * change[moving], np.abs(rates[rows]) * deviation[moving]
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"):  # (an input that stays put: its change and deviation 0)
+            effect[first:], spread[first:] = rates[first:] * change, np.abs(rates[first:]) * deviation
             changed = float(abs(self._solve(factors, effect)).max())
             coarse = changed + float(self.linear.bound(factors.lu, spread).max())
             if coarse <= allowed * (1.0 - 1e-12):  # (NaN is neither)
@@ -872,14 +875,15 @@ def _warn_if_undersampled(system: NumericSystem, times: np.ndarray, u: np.ndarra
     )  # fmt: skip
 
 
-def chord_deviation(ranges: np.ndarray, h: float, u1: np.ndarray, change: np.ndarray) -> np.ndarray:
+def chord_deviation(ranges: np.ndarray, h: float | np.ndarray, u1: np.ndarray, change: np.ndarray) -> np.ndarray:
     """Per input, a bound on |u(t) - L(t)| over a step of length h, L the chord from u(t0) to
     u(t1) = ``u1`` (``change`` = u1 - u0), from the enclosures ``ranges`` of u, du/dt and d2u/dt2 over
     the step (the ``input_ranges`` kernel's rows): h^2/8 max |d2u/dt2| (the linear interpolation's
     error), or where that is not finite, min(max |u - u1|, h max |du/dt|) + |change| (|u - L| <=
-    |u - u1| + |L - u1|). Infinite where nothing bounds it."""
+    |u - u1| + |L - u1|). Infinite where nothing bounds it. Many steps at once: ``h`` (K,), ``u1`` and
+    ``change`` (n_inputs, K), ``ranges`` (6 n_inputs, K); each step's values those of its own call."""
     n = len(u1)
-    lower, upper = ranges[: 3 * n].reshape(3, n), ranges[3 * n :].reshape(3, n)
+    lower, upper = ranges[: 3 * n].reshape(3, n, *ranges.shape[1:]), ranges[3 * n :].reshape(3, n, *ranges.shape[1:])
     with np.errstate(all="ignore"):
         magnitude = np.maximum(np.abs(lower), np.abs(upper))  # of u - 0, du/dt, d2u/dt2
         offset = np.maximum(np.abs(lower[0] - u1), np.abs(upper[0] - u1))  # max |u - u1|
@@ -890,27 +894,27 @@ def chord_deviation(ranges: np.ndarray, h: float, u1: np.ndarray, change: np.nda
 
 
 def input_effect(columns, h: float, start: tuple[np.ndarray, np.ndarray], end: tuple[np.ndarray, np.ndarray],
-                 ranges: np.ndarray | None) -> tuple[float, tuple[int, str] | None]:  # fmt: skip
+                 deviation: np.ndarray | None) -> tuple[float, tuple[int, str] | None]:  # fmt: skip
     """A bound on max over a step of h of |W (u(s) - u1)| (max-norm), W = J1^-1 Phi_u given by
     ``columns(which)`` (its columns ``which``), the inputs (u, du/dt) at the step's ``start`` and
     ``end``; and the input that contributes most, with what it does there (None when nothing moves).
 
-    * The case's own time functions (``ranges``: their enclosures over the step): u(s) - u1 =
-      -(1 - r) D + e(s), D = u1 - u0, |e_k| <= the chord deviation c_k (:func:`chord_deviation`), so
+    * The case's own time functions (``deviation``: c_k, each input's :func:`chord_deviation` over the
+      step, from their enclosures there): u(s) - u1 = -(1 - r) D + e(s), D = u1 - u0, |e_k| <= c_k, so
       at most |W D| + |sum_k |W_k| c_k|: certified for the functions themselves, however they move
       between the step's ends.
-    * Tabulated inputs (``ranges`` None): the cubic Hermite path of the values and rates at both
+    * Tabulated inputs (``deviation`` None): the cubic Hermite path of the values and rates at both
       ends, u(s) - u1 = -(1-r) D + r (1-r)^2 A - r^2 (1-r) B with A = h ud0 - D, B = h ud1 - D, so at
       most |W D| + 4/27 (|W A| + |W B|) -- certified for that path (the stated assumption).
     """
     (u0, ud0), (u1, ud1) = start, end
     change = u1 - u0
-    if ranges is None:
+    tabulated = deviation is None
+    if tabulated:
         a, b = h * ud0 - change, h * ud1 - change
         deviation = np.zeros_like(change)
     else:
         a = b = np.zeros_like(change)
-        deviation = chord_deviation(ranges, h, u1, change)
     moving = np.flatnonzero((change != 0) | (a != 0) | (b != 0) | (deviation != 0))
     if not moving.size:
         return 0.0, None
@@ -922,7 +926,7 @@ def input_effect(columns, h: float, start: tuple[np.ndarray, np.ndarray], end: t
         shares = np.abs(w).max(axis=0) * (np.abs(change[moving]) + deviation[moving] + 4.0 / 27.0 * (np.abs(a[moving]) + np.abs(b[moving])))
     j = int(np.nanargmax(np.where(np.isnan(shares), np.inf, shares)))
     k = int(moving[j])
-    if ranges is None:
+    if tabulated:
         what = f"it changes by {change[k]:.3g} and its rates by {ud0[k]:.3g} .. {ud1[k]:.3g} along the samples' cubic path"
     else:
         what = f"it changes by {change[k]:.3g} between the step's ends and strays up to {deviation[k]:.3g} from that chord in between"
