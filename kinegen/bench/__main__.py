@@ -1,6 +1,6 @@
 """``make bench``: kinegen and its baselines, one fresh process per row, ratios in one run.
 
-Usage: python -m kinegen.bench [--sizes 3 14] [--excavator digging level_cut] [--quick]
+Usage: python -m kinegen.bench [--sizes 3 14] [--excavator digging level_cut] [--quick] [--only NAME ...]
 
 Workloads: chain-N (``docs/chain-N.md``) and the excavator's cases, 1000 time
 points each, Newton to max|Phi| < 1e-10 from the previous solution, then velocity and
@@ -10,7 +10,8 @@ its trajectory time to kinegen's on the same previous-q workload. The machines a
 and noisy: ratios measured in one run are what counts. Then the working-range sweep rate,
 the C target's memory per solver instance, and the targets (issues 5 and 11), each checked
 on this run's figures.
-``--quick`` leaves out the slow baselines (SciPy finite differences, naive SymPy).
+``--quick`` leaves out the slow baselines (SciPy finite differences, naive SymPy); ``--only`` runs
+only the contenders whose names contain one of the given words (e.g. ``--only casadi "own predictor"``).
 """
 
 from __future__ import annotations
@@ -104,7 +105,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-sweep", action="store_true", help="leave out the working-range sweep")
     parser.add_argument("--no-studies", action="store_true", help="leave out the design studies (exact vs finite-difference gradients)")
     parser.add_argument("--no-explore", action="store_true", help="leave out kinegen explore on Dask (1 and 2 workers vs one process)")
+    parser.add_argument("--only", nargs="+", metavar="NAME", default=None,
+                        help="only the contenders whose names contain one of these words (any case)")  # fmt: skip
     args = parser.parse_args(argv)
+    chosen = [name for name in CONTENDERS if args.only is None or any(word.lower() in name.lower() for word in args.only)]
+    if not chosen:
+        parser.error(f"--only {' '.join(args.only)}: no contender's name contains these; the contenders: {', '.join(CONTENDERS)}")
     workloads = [f"chain-{n}" for n in args.sizes] + [f"excavator-{c}" for c in args.excavator]
     failures = 0
     rows: dict[tuple[str, str], dict] = {}
@@ -120,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         (w, name, call)
         for w in workloads
         for name, (call, largest, excavator, slow) in CONTENDERS.items()
-        if not ((w.startswith("chain") and int(w.split("-")[1]) > largest) or (w.startswith("excavator") and not excavator) or (args.quick and slow))
+        if name in chosen and not ((w.startswith("chain") and int(w.split("-")[1]) > largest) or (w.startswith("excavator") and not excavator) or (args.quick and slow))
     ]
     design = "__import__('kinegen.bench.design', fromlist=['x'])"
     sections = {  # name -> what it measures, when this run asks for it
