@@ -787,11 +787,37 @@ def _same_rows(c: np.ndarray, table: np.ndarray, names: list[str]) -> None:
     assert np.abs(np.log(c[:, condition] / table[:, condition])).max() < np.log(3.0)
 
 
-def test_standalone_excavator_builds_strictly_and_matches_python_in_every_case(tmp_path):
-    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion")
+#: the standalone excavator's tests on one worker, so that its C (~24,000 lines, ~14 s at -O2) compiles once
+EXCAVATOR_C = pytest.mark.xdist_group(name="standalone_excavator_c")
+
+
+@pytest.fixture(scope="module")
+def excavator_objects(tmp_path_factory) -> Path:
+    """The standalone excavator (quaternion, its default build) and its model's C and the solver compiled
+    to objects under the strict flags at -O2, for the tests that link their own main() against them."""
+    folder = _standalone(tmp_path_factory.mktemp("excavator"), MODELS / "excavator.yaml", "quaternion")
+    for name in ("excavator_quaternion", "kinegen_solver"):
+        done = subprocess.run([CC, *STRICT, *STACK, "-O2", "-c", "-o", str(folder / f"{name}.o"), str(folder / f"{name}.c")],
+                              capture_output=True, text=True)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+    return folder
+
+
+def _link(folder: Path, program: str, sources: list[str], flags: list[str]) -> Path:
+    """``sources`` of ``folder`` compiled with ``flags`` and linked with the excavator's objects."""
+    objects = [str(folder / f"{name}.o") for name in ("excavator_quaternion", "kinegen_solver")]
+    done = subprocess.run([CC, *flags, "-o", str(folder / program), *(str(folder / s) for s in sources), *objects, "-lm"],
+                          capture_output=True, text=True)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    return folder / program
+
+
+@EXCAVATOR_C
+def test_standalone_excavator_builds_strictly_and_matches_python_in_every_case(excavator_objects):
+    folder = excavator_objects
     assert {p.name for p in folder.iterdir()} >= {"excavator_quaternion.c", "excavator_quaternion.h", "kinegen_solver.c",
                                                    "kinegen_solver.h", "Makefile", "CMakeLists.txt", "example_main.c"}  # fmt: skip
-    program = _compile(folder, "excavator_quaternion", ["-O2"])
+    program = _link(folder, "excavator_quaternion_test", ["example_main.c"], [*STRICT, *STACK, "-O2"])
     module = load_module(GENERATED / "excavator_quaternion.py")
     for case in ("digging", "level_cut", "trench_wall"):
         _compare(program, from_module(module, case, compiled=False), case)
@@ -917,7 +943,8 @@ def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path
     assert failed.returncode in (1, 2, 3) and failed.stderr.startswith("error: excavator/bucket_toggle at t = ")
 
 
-def test_the_readmes_controller_snippet_compiles_strictly_and_solves_its_case(tmp_path):
+@EXCAVATOR_C
+def test_the_readmes_controller_snippet_compiles_strictly_and_solves_its_case(excavator_objects):
     """The C block of docs/controller.md ("Using kinegen in a controller"), as printed, compiled with the
     standalone directory's files under the strict flags, called from a main(): every step of the
     level cut solved (KINEGEN_OK)."""
@@ -925,14 +952,11 @@ def test_the_readmes_controller_snippet_compiles_strictly_and_solves_its_case(tm
     section = readme[readme.index("## Using kinegen in a controller") :]
     snippet = section[section.index("```c\n") + 5 : section.index("```", section.index("```c\n") + 5)]
     stated = int(re.search(r"all memory of one solver: ([\d,]+) B", snippet).group(1).replace(",", ""))
-    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion")
+    folder = excavator_objects
     (folder / "controller.c").write_text(snippet)
     (folder / "main.c").write_text('#include <stdio.h>\n#include "excavator_quaternion.h"\nint control_loop(void);\nint main(void) {\n'
                                    '    int status = control_loop();\n'
                                    '    printf("%d %zu\\n", status, sizeof(excavator_quaternion_workspace));\n    return status;\n}\n')  # fmt: skip
-    program = folder / "controller"
-    sources = [str(folder / n) for n in ("main.c", "controller.c", "excavator_quaternion.c", "kinegen_solver.c")]
-    done = subprocess.run([CC, *STRICT, "-O1", "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
+    program = _link(folder, "controller", ["main.c", "controller.c"], [*STRICT, "-O1"])
     ran = subprocess.run([str(program)], capture_output=True, text=True, timeout=120)
     assert (ran.returncode, ran.stdout.split()) == (0, ["0", str(stated)]), ran.stderr  # the workspace as the snippet states it
