@@ -7,8 +7,15 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from kinegen.bench.contenders import kinegen_run, naive_sympy_run, symbolic_phi, workload
+from kinegen.bench import contenders
+from kinegen.bench.contenders import best_time, kinegen_run, naive_sympy_run, symbolic_phi, workload
 from kinegen.runtime.linear import BandLU, DenseLU, choose
+
+
+@pytest.fixture(autouse=True)
+def _one_trajectory(monkeypatch):
+    """The contenders' rows here check their answers, not their times: one trajectory each."""
+    monkeypatch.setattr(contenders, "REPEATS", 1)
 
 
 def benchmark_equations(n: int, q: list[sp.Symbol], t: sp.Symbol) -> list[sp.Expr]:
@@ -79,6 +86,27 @@ def test_chain3_contenders_match_the_analytic_tip():
         assert row["error"] < 1e-9
         assert row["build"] > 0 and row["trajectory"] > 0
     assert kinegen_run("chain-3", False)["iterations"] > 2  # plain previous-q starts need more Newton steps
+
+
+def test_a_contenders_time_is_the_shortest_of_its_repeats_within_the_budget():
+    """best_time: the shortest of the timed calls (the same work each time), at most ``repeats`` of
+    them, fewer once they took ``budget`` seconds; the result is the last call's."""
+    import time
+
+    pauses = iter([0.06, 0.002, 0.03, 0.1, 0.05])
+    calls = []
+
+    def run():
+        pause = next(pauses)
+        calls.append(pause)
+        time.sleep(pause)
+        return pause
+
+    best, last = best_time(run, repeats=3, budget=10.0)
+    assert calls == [0.06, 0.002, 0.03] and last == 0.03 and 0.002 <= best < 0.03
+    calls.clear()
+    best, last = best_time(run, repeats=5, budget=0.12)  # 0.1 + 0.05 pass the budget: no third call
+    assert calls == [0.1, 0.05] and last == 0.05 and 0.05 <= best < 0.1
 
 
 def test_optional_contenders_match_the_analytic_tip():

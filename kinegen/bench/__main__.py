@@ -1,6 +1,6 @@
 """``make bench``: kinegen and its baselines, one fresh process per row, ratios in one run.
 
-Usage: python -m kinegen.bench [--sizes 3 14] [--excavator digging level_cut] [--quick] [--only NAME ...]
+Usage: python -m kinegen.bench [--sizes 3 14] [--excavator digging level_cut] [--quick] [--only NAME ...] [--repeats N]
 
 Workloads: chain-N (``docs/chain-N.md``) and the excavator's cases, 1000 time
 points each, Newton to max|Phi| < 1e-10 from the previous solution, then velocity and
@@ -12,6 +12,8 @@ the C target's memory per solver instance, and the targets (issues 5 and 11), ea
 on this run's figures.
 ``--quick`` leaves out the slow baselines (SciPy finite differences, naive SymPy); ``--only`` runs
 only the contenders whose names contain one of the given words (e.g. ``--only casadi "own predictor"``).
+Each contender's trajectory is timed up to ``--repeats`` times (5) in its process, fewer once they took
+2 s, and the shortest counts.
 """
 
 from __future__ import annotations
@@ -105,9 +107,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-sweep", action="store_true", help="leave out the working-range sweep")
     parser.add_argument("--no-studies", action="store_true", help="leave out the design studies (exact vs finite-difference gradients)")
     parser.add_argument("--no-explore", action="store_true", help="leave out kinegen explore on Dask (1 and 2 workers vs one process)")
+    parser.add_argument("--repeats", type=int, default=None, metavar="N",
+                        help="time each contender's trajectory up to N times in its process, the shortest counting (default 5, "
+                             "fewer once they took 2 s)")  # fmt: skip
     parser.add_argument("--only", nargs="+", metavar="NAME", default=None,
                         help="only the contenders whose names contain one of these words (any case)")  # fmt: skip
     args = parser.parse_args(argv)
+    if args.repeats is not None:
+        if args.repeats < 1:
+            parser.error(f"--repeats {args.repeats}: at least 1")
+        os.environ["KINEGEN_BENCH_REPEATS"] = str(args.repeats)  # read by each contender's process (contenders.REPEATS)
+    repeats = os.environ.get("KINEGEN_BENCH_REPEATS", "5")
     chosen = [name for name in CONTENDERS if args.only is None or any(word.lower() in name.lower() for word in args.only)]
     if not chosen:
         parser.error(f"--only {' '.join(args.only)}: no contender's name contains these; the contenders: {', '.join(CONTENDERS)}")
@@ -119,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
         f"{'error m':>8} {'peak MB':>7}"
     )
     print("1000 time points, Newton to max|Phi| < 1e-10, velocity + acceleration; Euler parameters unless named")
-    print("x kinegen = trajectory time / kinegen's on the same previous-q workload (one process per row)")
+    print(f"x kinegen = trajectory time / kinegen's on the same previous-q workload (one process per row, the shortest of up to "
+          f"{repeats} trajectories there)")
     print(header)
     print("-" * len(header))
     plan = [
@@ -153,12 +164,13 @@ def main(argv: list[str] | None = None) -> int:
                 failures += 1
                 bar.write(f"{w:<19} {name:<36} FAILED: {row['failed']}")
                 continue
-            base = rows.get((w, KINEGEN), row)
+            base = rows.get((w, KINEGEN), {}).get("trajectory")  # (not run: --only left it out)
             ok = row["error"] < TOLERANCE
             failures += not ok
+            ratio = f"{row['trajectory'] / base:>9.2f}" if base else f"{'-':>9}"
             bar.write(
                 f"{w:<19} {name:<36} {row['build']:>8.3f} {row['trajectory']:>8.3f} "
-                f"{row['trajectory'] / base.get('trajectory', row['trajectory']):>9.2f} {row['iterations']:>7.2f} "
+                f"{ratio} {row['iterations']:>7.2f} "
                 f"{row['error']:>8.1e} {row['peak_mb']:>7.0f}"
                 + ("" if ok else "  ERROR > 1e-9")
                 + (f"  ({row['note']})" if "note" in row else "")
