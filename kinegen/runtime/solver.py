@@ -193,11 +193,11 @@ class Solver:
             if s[-1] <= self.options.singular_tolerance * s[0]:  # column rank lost: a singular pose
                 self.check_singular(jacobian, t)
             return Factors(values, pinv=np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance))
-        values = np.asarray(values, dtype=float)  # once (the generated Python's plain floats give a list): the certificate reads them too
+        values = np.asarray(values, dtype=float)  # once: the plain-float kernels give a list, which the certificate reads again
         lu, diagonal = self.linear.factor(values)
         low, high = diagonal.min(), diagonal.max()  # NaN propagates (unlike Python's min)
         if not low > self.options.singular_tolerance * max(high, 1e-300):  # also for NaN (a NaN in Phi_q reaches U)
-            if not np.all(np.isfinite(np.asarray(values, dtype=float))):
+            if not np.all(np.isfinite(values)):
                 raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
             self.check_singular(self.linear.dense(values), t)
         return Factors(values, lu=lu)
