@@ -184,8 +184,8 @@ class Solver:
 
     def _factor(self, values: Any, t: float) -> Factors:
         """Factors of Phi_q given its values (a pseudo-inverse for a redundant system)."""
+        values = np.asarray(values, dtype=float)  # once: the plain-float kernels give a list, which the certificate reads again
         if self.redundant:
-            values = np.asarray(values, dtype=float)
             if not np.all(np.isfinite(values)):
                 raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
             jacobian = self.linear.dense(values)
@@ -193,7 +193,6 @@ class Solver:
             if s[-1] <= self.options.singular_tolerance * s[0]:  # column rank lost: a singular pose
                 self.check_singular(jacobian, t)
             return Factors(values, pinv=np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance))
-        values = np.asarray(values, dtype=float)  # once: the plain-float kernels give a list, which the certificate reads again
         lu, diagonal = self.linear.factor(values)
         low, high = diagonal.min(), diagonal.max()  # NaN propagates (unlike Python's min)
         if not low > self.options.singular_tolerance * max(high, 1e-300):  # also for NaN (a NaN in Phi_q reaches U)
@@ -720,7 +719,7 @@ class Solver:
         distance = float(abs(moved).max()) if moved.size else 0.0
         omega = 0.0
         if distance > MIN_MOTION:
-            change = (np.asarray(previous.values, dtype=float) - np.asarray(factors.values, dtype=float)) * moved[system.jac_cols]
+            change = (previous.values - factors.values) * moved[system.jac_cols]
             w = np.bincount(system.jac_rows, weights=change, minlength=len(system.constraint_names))
             omega = self.options.safety * float(abs(self._solve(factors, w)).max()) / distance**2
         if not distance < MAX_MOTION:
@@ -803,7 +802,7 @@ class Solver:
         if not self._block_groups:
             return None
         if factors.block_signs is None:
-            values = np.asarray(factors.values, dtype=float)
+            values = factors.values
             signs = np.empty(len(self.blocks))
             for members, value_index, flat, size in self._block_groups:
                 stack = np.zeros((len(members), size, size))
