@@ -405,6 +405,7 @@ static int run(const kinegen_model *m, int k) {
         memcpy(states[k][i] + m->n_q, s.v, sizeof(double) * (size_t)m->n_v);
         memcpy(states[k][i] + m->n_q + m->n_v, s.a, sizeof(double) * (size_t)m->n_v);
         states[k][i][m->n_q + 2 * m->n_v] = s.condition;
+        states[k][i][m->n_q + 2 * m->n_v + 1] = i > 0 ? s.bound : 0.0; /* the certificate's alpha omega */
     }
     if (k == 0) { /* the written-out solves against Phi_q itself (s.jac: its values the factors are of) */
         double c[FOUR_BAR_QUATERNION_N_V], x[FOUR_BAR_QUATERNION_N_V], xt[FOUR_BAR_QUATERNION_N_V];
@@ -447,10 +448,10 @@ def test_the_written_out_block_solve_is_the_solvers_loop_to_the_bit(tmp_path):
     """Each case's Phi_q solves, written out straight-line by the C backend (kinegen_model.solve and
     solve_transposed, per distinct plan), do the operations of the solver's loops over the plan in the
     same order: every case of the four-bar solved both ways (the case's struct copied with both NULL),
-    certified, with the condition estimate (its transposed solves), the states of every step and the
-    estimates equal to the bit; and at the last step both written-out solves leave residuals |Phi_q x - c|
-    and |Phi_q^T x - c| below 1e-14 of max |Phi_q_ij x_j| against the Jacobian values themselves. Real C,
-    strict flags."""
+    certified, with the condition estimate (its transposed solves), the states of every step, the
+    estimates and the certificate's bounds equal to the bit; and at the last step both written-out
+    solves leave residuals |Phi_q x - c| and |Phi_q^T x - c| below 1e-14 of max |Phi_q_ij x_j| against the
+    Jacobian values themselves. Real C, strict flags."""
     run = _four_bar_program(tmp_path, "solve", SOLVE_PROGRAM, "-O2")
     assert run.returncode == 0, (run.returncode, run.stdout, run.stderr)
     lines = [line for line in run.stdout.splitlines() if not line.startswith("residuals ")]
@@ -465,7 +466,7 @@ SOLVE_FROM_PROGRAM = r"""
 #include <stdio.h>
 #include <string.h>
 static chain14_euler_parameters_workspace w;
-static double states[2][42][3 * CHAIN14_EULER_PARAMETERS_N_V + CHAIN14_EULER_PARAMETERS_N_Q];
+static double states[3][42][3 * CHAIN14_EULER_PARAMETERS_N_V + CHAIN14_EULER_PARAMETERS_N_Q + 1];
 static double inputs[3 * 14];
 
 /* the certified trajectory along the case's own functions, every step's q, v, a into states[k] */
@@ -485,6 +486,7 @@ static int run(const kinegen_model *m, int k) {
         memcpy(states[k][i], s.q, sizeof(double) * (size_t)m->n_q);
         memcpy(states[k][i] + m->n_q, s.v, sizeof(double) * (size_t)m->n_v);
         memcpy(states[k][i] + m->n_q + m->n_v, s.a, sizeof(double) * (size_t)m->n_v);
+        states[k][i][m->n_q + 2 * m->n_v] = i > 0 ? s.bound : 0.0; /* the certificate's alpha omega */
     }
     if (k == 0) { /* each input's column from its part of the solve against the whole solve, at the last step */
         static double b[CHAIN14_EULER_PARAMETERS_N_V], x[CHAIN14_EULER_PARAMETERS_N_V], y[CHAIN14_EULER_PARAMETERS_N_V], work[CHAIN14_EULER_PARAMETERS_N_V];
@@ -504,13 +506,19 @@ static int run(const kinegen_model *m, int k) {
 
 int main(void) {
     const kinegen_model *m = chain14_euler_parameters_cases[0];
-    kinegen_model whole = *m; /* the same case, every column through the whole solve */
+    kinegen_model whole = *m, loops = *m; /* the same case, every column through the whole solve; and every solve
+                                             and bound pass through the solver's loops over the plan */
     whole.solve_from = NULL;
     whole.input_pieces = NULL;
+    loops.solve = NULL;
+    loops.solve_transposed = NULL;
+    loops.solve_from = NULL;
+    loops.input_pieces = NULL;
     if (m->solve_from == NULL || m->input_pieces == NULL) return 2;
-    int a = run(m, 0), b = run(&whole, 1);
-    if (a != b || a < 2) return 3;
+    int a = run(m, 0), b = run(&whole, 1), c = run(&loops, 2);
+    if (a != b || a != c || a < 2) return 3;
     printf("%s %d %s\n", m->case_name, a, memcmp(states[0], states[1], sizeof(states[0])) == 0 ? "identical" : "differ");
+    printf("loops %d %s\n", c, memcmp(states[0], states[2], sizeof(states[0])) == 0 ? "identical" : "differ");
     return 0;
 }
 """
@@ -524,9 +532,11 @@ static four_bar_quaternion_workspace w;
 int main(void) {
     const kinegen_model *m = four_bar_quaternion_cases[0];
     kinegen_solver s;
-    double inputs[3 * 16], b[FOUR_BAR_QUATERNION_N_V], x[FOUR_BAR_QUATERNION_N_V];
+    double inputs[3 * 16], b[FOUR_BAR_QUATERNION_N_V], x[FOUR_BAR_QUATERNION_N_V], y[FOUR_BAR_QUATERNION_N_V];
     int n = m->n_inputs, i, j, k;
-    if (kinegen_init(&s, m, NULL, w.doubles, w.ints) != KINEGEN_OK) return 2;
+    kinegen_model loop = *m; /* the solver's bound pass over the plan, reading the factors' magnitudes */
+    loop.solve = NULL;
+    if (m->solve == NULL || kinegen_init(&s, m, NULL, w.doubles, w.ints) != KINEGEN_OK) return 2;
     s.options.case_inputs = 1;
     kinegen_case_inputs(m, m->t0, inputs);
     if (kinegen_start(&s, m->t0, m->initial_q, inputs, inputs + n, inputs + 2 * n) != KINEGEN_OK) return 3;
@@ -541,6 +551,10 @@ int main(void) {
         for (j = 0; j <= m->n_v; ++j) { /* every unit vector, then a positive one */
             for (k = 0; k < m->n_v; ++k) b[k] = j < m->n_v ? (k == j) : 0.5 + 0.25 * ((k * 7 + i) % 5);
             solve_bound(&s, b, x);
+            s.model = &loop; /* the same bits as the written solve over the comparison matrices */
+            solve_bound(&s, b, y);
+            s.model = m;
+            if (memcmp(x, y, sizeof(x)) != 0) return 5;
             printf("bound");
             for (k = 0; k < m->n_v; ++k) printf(" %.17g", b[k]);
             for (k = 0; k < m->n_v; ++k) printf(" %.17g", x[k]);
@@ -557,7 +571,9 @@ def test_the_coarse_inverse_bound_is_never_below_the_inverse(tmp_path):
     at least |Phi_q^-1| b entry by entry -- what lets a step it certifies skip the exact bound. The
     four-bar (quaternion): Phi_q's blocks of 1, 2 and 4 rows and the entries below them, at 12 solved
     poses along its case, for every unit vector (each column of |Phi_q^-1|) and a positive one;
-    against NumPy's inverse of the dense Phi_q. Real C, strict flags."""
+    against NumPy's inverse of the dense Phi_q. The bound is the case's written solve over the factors'
+    comparison matrices, and the solver's bound pass over the plan (solve NULL) gives the same bits for
+    each. Real C, strict flags."""
     for suffix in (".c", ".h"):
         shutil.copy(GENERATED / f"four_bar_quaternion{suffix}", tmp_path)
     for runtime in config.RUNTIME:
@@ -594,7 +610,10 @@ def test_each_inputs_column_from_its_part_of_the_written_solve_changes_no_bit(tm
     written solve that holds its driver's row (kinegen_model.solve_from, input_pieces): the rows before
     are zero. chain-14 (five functions, its inputs spread over all of them): every column equal to the
     whole solve's, and the certified trajectory's states equal to the bit to the one solved with both
-    fields NULL. Real C, strict flags."""
+    fields NULL. And with the written solve, the certificate's coarse bound on |Phi_q^-1| b is that solve
+    over the factors' comparison matrices: the states and each step's bound alpha omega equal to the bit
+    to the ones of the solver's loops over the plan (every written solve NULL), whose bound pass reads the
+    factors' magnitudes itself. Real C, strict flags."""
     from kinegen.codegen import writer
     from kinegen.model import loads
 
@@ -609,9 +628,10 @@ def test_each_inputs_column_from_its_part_of_the_written_solve_changes_no_bit(tm
     assert done.returncode == 0, done.stderr
     run = subprocess.run([str(tmp_path / "solve_from")], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, (run.returncode, run.stdout, run.stderr)
-    columns, trajectory = run.stdout.splitlines()
+    columns, trajectory, loops = run.stdout.splitlines()
     assert columns.startswith("columns 0 differ") and int(columns.split()[-1]) >= 3, columns  # (functions 0-4: most skipped)
     assert trajectory.startswith("drive ") and trajectory.endswith(" identical") and int(trajectory.split()[1]) >= 41, trajectory
+    assert loops == f"loops {trajectory.split()[1]} identical", loops
 
 
 def test_the_c_solver_finds_its_kernels_by_role_and_refuses_a_table_that_declares_them_otherwise(tmp_path):

@@ -318,6 +318,9 @@ typedef struct kinegen_solver {
     int branch_input;       /* after KINEGEN_BRANCH: the input that contributed most to the refused bound, or -1 */
     int *moving;            /* the certificate's work: the inputs that move over the step (n_inputs ints) */
     double *path;           /* kinegen_step's work: the step's start inputs and a halved piece's (5 n_inputs) */
+    double *bound_store, *bound_off; /* the certificate's coarse bound: the comparison matrices of the factors in
+                                        store and off (n_store, n_off doubles), made when first needed */
+    int have_bound;                  /* bound_store and bound_off are those of the factors in store */
     kinegen_roles roles;    /* the kernels it calls */
     const char *role;       /* after KINEGEN_MODEL from kinegen_init: the role it could not bind (else NULL) */
 } kinegen_solver;
@@ -330,7 +333,7 @@ typedef struct kinegen_solver {
 /* kinegen_init, one case: n_q stored and n_v velocity coordinates, n_jac values of Phi_q, n_store values of
  * its blocks' factors and n_off below them, n_blocks diagonal blocks, n_inputs drivers */
 #define KINEGEN_WORK_DOUBLES(n_q, n_v, n_jac, n_store, n_off, n_inputs) \
-    (2 * (n_q) + 20 * (n_v) + 2 * (n_jac) + (n_store) + (n_off) + 14 * (n_inputs))
+    (2 * (n_q) + 20 * (n_v) + 2 * (n_jac) + 2 * (n_store) + 2 * (n_off) + 14 * (n_inputs))
 #define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (2 * (n_v) + 2 * (n_blocks) + (n_inputs))
 /* kinegen_sensitivities: n_p design parameters, n_values the largest sensitivity kernel's output */
 #define KINEGEN_SENSITIVITY_DOUBLES(n_v, n_p, n_values) (2 * (n_v) * (n_p) + (n_values))
