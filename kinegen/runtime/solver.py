@@ -38,10 +38,12 @@ from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
 from kinegen.symbolic.blocks import Block, block_triangular
 
-#: The largest motion a certified step may make in any velocity coordinate (max-norm of Newton's path
-#: from the last solution, the predictor's included): a quarter turn. The certificate's ball about the
-#: new solution holds the last one; beyond half a turn a rotation coordinate repeats within it (its
-#: Jacobian too), where the Lipschitz constant measured over the step says nothing.
+#: The largest motion a certified step may make in any velocity coordinate but a body's translations
+#: (max-norm of Newton's path from the last solution, the predictor's included): a quarter turn. The
+#: certificate's ball about the new solution holds the last one; beyond half a turn a rotation coordinate
+#: repeats within it (its Jacobian too), where the Lipschitz constant measured over the step says nothing.
+#: A translation repeats nothing, and a chain's far links move metres in a step
+#: (:attr:`kinegen.runtime.system.NumericSystem.turning`).
 MAX_MOTION = np.pi / 2
 #: ... and the least over which omega is measured: Phi_q's change over a smaller motion is rounding
 #: (a step that moves less is as certain as x0 itself; below 1e-154, |d|^2 underflows)
@@ -722,9 +724,12 @@ class Solver:
             change = (previous.values - factors.values) * moved[system.jac_cols]
             w = np.bincount(system.jac_rows, weights=change, minlength=len(system.constraint_names))
             omega = self.options.safety * float(abs(self._solve(factors, w)).max()) / distance**2
-        if not distance < MAX_MOTION:
+        turns = abs(moved[system.turning])
+        turn = float(turns.max()) if turns.size else 0.0
+        if not turn < MAX_MOTION or not np.isfinite(distance):
+            which = system.velocity_names[system.turning[int(np.argmax(turns))]] if turns.size else "no coordinate"
             return (
-                f"the step moves a coordinate by {distance:.3g} (Newton's path from the last solution), beyond a quarter turn "
+                f"the step turns {which} by {turn:.3g} (Newton's path from the last solution), beyond a quarter turn "
                 f"({MAX_MOTION:.3g}): within such a ball a rotation coordinate repeats, so no continuation bound holds there"
             )
         x1, u1 = solution.q, inputs[0]

@@ -71,6 +71,13 @@ def _statics(module: ModuleType | Any, p: np.ndarray | None) -> StaticsKernels |
     )  # fmt: skip
 
 
+#: The names kinegen.rotations gives a body's velocity coordinates that translate it: x, y, z of every
+#: parametrization that stores the origin, vx, vy, vz of a dual quaternion's twist (``<body>.<name>``). The
+#: certificate's quarter-turn cap leaves them out (:attr:`NumericSystem.turning`; kinegen_solver.c's
+#: ``translation`` reads the same names).
+TRANSLATIONS = ("x", "y", "z", "vx", "vy", "vz")
+
+
 @dataclass(frozen=True)
 class NumericSystem:
     """Compiled kinematics of one case: Phi, sparse Phi_q values, nu, gamma and metadata."""
@@ -262,6 +269,12 @@ class NumericSystem:
             return np.broadcast_to(local, (len(q), *local.shape)).copy()
         origin, rotation = self.parametrization.pose(self.body_coordinates(q, body))
         return origin[:, None, :] + local @ rotation.swapaxes(1, 2)
+
+    @cached_property
+    def turning(self) -> np.ndarray:
+        """The indices of the velocity coordinates that are not a body's translation (:data:`TRANSLATIONS`):
+        the ones whose motion in a certified step is capped at a quarter turn (:data:`kinegen.runtime.solver.MAX_MOTION`)."""
+        return np.array([i for i, name in enumerate(self.velocity_names) if name.rsplit(".", 1)[-1] not in TRANSLATIONS], dtype=np.intp)
 
     @cached_property
     def frame_slices(self) -> dict[str, slice]:

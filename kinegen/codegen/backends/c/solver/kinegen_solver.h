@@ -54,13 +54,15 @@ enum kinegen_status {
  *           with options.case_inputs for the case's own time functions over their enclosures on the step
  *           (its input_ranges kernel: interval arithmetic), however they move between its ends; otherwise
  *           for the cubic Hermite path of the inputs' values and rates at both ends
- * The step is accepted when every diagonal block keeps the sign of its determinant, |d| < KINEGEN_MAX_MOTION,
+ * The step is accepted when every diagonal block keeps the sign of its determinant, |d_i| < KINEGEN_MAX_MOTION
+ * in every velocity coordinate i but the bodies' translations,
  * alpha omega <= 1/2 and omega |d| < 1: by the Newton-Kantorovich theorem every Phi(., u(s)) then has
  * exactly one zero in the ball of radius 1/omega about x1, these zeros form one continuous path, and x0
  * and x1 both lie on it. Otherwise the step is halved (inputs at the midpoint: options.case_inputs). */
-/* The largest motion of a certified step in any velocity coordinate: a quarter turn. Beyond half a turn a
- * rotation coordinate repeats within the certificate's ball (and Phi_q with it), where omega measured over
- * the step says nothing. */
+/* The largest motion of a certified step in any velocity coordinate but a body's translations: a quarter
+ * turn. Beyond half a turn a rotation coordinate repeats within the certificate's ball (and Phi_q with it),
+ * where omega measured over the step says nothing; a translation repeats nothing, and a chain's far links
+ * move metres in a step (kinegen_solver.turning). */
 #define KINEGEN_MAX_MOTION 1.5707963267948966
 /* ... and the least over which omega is measured: Phi_q's change over a smaller motion is rounding (a step
  * that moves less is as certain as x0 itself; below 1e-154, |d|^2 underflows) */
@@ -317,6 +319,9 @@ typedef struct kinegen_solver {
     double *cert;           /* the certificate's work: 10 n_v + 7 n_inputs doubles */
     int branch_input;       /* after KINEGEN_BRANCH: the input that contributed most to the refused bound, or -1 */
     int *moving;            /* the certificate's work: the inputs that move over the step (n_inputs ints) */
+    int *turning, n_turning; /* the velocity coordinates KINEGEN_MAX_MOTION caps (at most n_v ints): all but the
+                                bodies' translations, the ones the layout names <body>.x, .y, .z, or .vx, .vy,
+                                .vz (a dual quaternion's twist) -- kinegen.rotations' names, read by kinegen_init */
     double *path;           /* kinegen_step's work: the step's start inputs and a halved piece's (5 n_inputs) */
     double *bound_store, *bound_off; /* the certificate's coarse bound: the comparison matrices of the factors in
                                         store and off (n_store, n_off doubles), made when first needed */
@@ -334,7 +339,7 @@ typedef struct kinegen_solver {
  * its blocks' factors and n_off below them, n_blocks diagonal blocks, n_inputs drivers */
 #define KINEGEN_WORK_DOUBLES(n_q, n_v, n_jac, n_store, n_off, n_inputs) \
     (2 * (n_q) + 20 * (n_v) + 2 * (n_jac) + 2 * (n_store) + 2 * (n_off) + 14 * (n_inputs))
-#define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (2 * (n_v) + 2 * (n_blocks) + (n_inputs))
+#define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (3 * (n_v) + 2 * (n_blocks) + (n_inputs))
 /* kinegen_sensitivities: n_p design parameters, n_values the largest sensitivity kernel's output */
 #define KINEGEN_SENSITIVITY_DOUBLES(n_v, n_p, n_values) (2 * (n_v) * (n_p) + (n_values))
 /* kinegen_forces, any case: n_inertia and n_load_values the inertia and loads kernels' outputs, n_inputs
