@@ -491,9 +491,6 @@ static void solve_columns(kinegen_solver *s, double *b, int used, double *y) {
         for (int c = 0; c < count; ++c) b[(size_t)c * nv + m->col_order[j]] = y[(size_t)j * count + c];
 }
 
-/* x = an upper bound on |Phi_q^-1| b for b >= 0 (entry by entry) from the current factors (x and b may
- * alias): substitute's pass in absolute values. Coarse -- it loses every cancellation: ~10^3-10^4 times
- * |Phi_q^-1| b on chain-50's and the excavator's steps -- and one pass over the factors. */
 /* out = -|x| for n values, four at a time (as max_abs: a quarter of the loop's own instructions) */
 static void negated_magnitudes(const double *x, double *out, int n) {
     int i = 0;
@@ -507,11 +504,12 @@ static void negated_magnitudes(const double *x, double *out, int n) {
     for (; i < n; ++i) out[i] = -fabs(x[i]);
 }
 
-/* An upper bound on |Phi_q^-1| b for b >= 0 from the current factors (x and b may alias): with the case's
- * written-out solve, that solve over the factors' comparison matrices (bound_store, bound_off: each block's
- * LU with |diagonal| and -|other entries|, -|entries below the blocks|), made once per factorization --
- * substitute's bound pass to the bit (a - (-|e|) y is a + |e| y exactly), at a solve's cost (chain-14: ~2
- * against ~11 thousand instructions); else that pass itself. */
+/* x = an upper bound on |Phi_q^-1| b for b >= 0 (entry by entry) from the current factors (x and b may
+ * alias): substitute's pass in absolute values. Coarse -- it loses every cancellation: ~10^3-10^4 times
+ * |Phi_q^-1| b on chain-50's and the excavator's steps. With the case's written-out solve, that solve over
+ * the factors' comparison matrices (bound_store, bound_off: each block's LU with |diagonal| and -|other
+ * entries|, -|entries below the blocks|), made once per factorization: substitute's pass to the bit
+ * (a - (-|e|) y is a + |e| y exactly) at a solve's cost (chain-14: ~2 against ~11 thousand instructions). */
 static void solve_bound(kinegen_solver *s, const double *b, double *x) {
     const kinegen_model *m = s->model;
     if (m->solve == NULL) {
@@ -867,7 +865,7 @@ static int certify(kinegen_solver *s, double t, double h, const double *u, const
         double a = fabs(s->moved[s->turning[k]]);
         turn = a > turn ? a : turn;
     }
-    if (!(turn < KINEGEN_MAX_MOTION) || isnan(distance)) { /* beyond a quarter turn: see KINEGEN_MAX_MOTION */
+    if (!(turn < KINEGEN_MAX_MOTION) || !isfinite(distance)) { /* beyond a quarter turn: see KINEGEN_MAX_MOTION */
         s->bound = INFINITY;
         return KINEGEN_BRANCH;
     }
