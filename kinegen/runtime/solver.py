@@ -718,13 +718,14 @@ class Solver:
         if moved is None:
             return "Newton needed a fallback (line search, homotopy or least squares), whose path is not certified"
         system = self.system
-        distance = float(abs(moved).max()) if moved.size else 0.0
+        magnitudes = abs(moved)
+        distance = float(magnitudes.max()) if moved.size else 0.0
         omega = 0.0
         if distance > MIN_MOTION:
             change = (previous.values - factors.values) * moved[system.jac_cols]
             w = np.bincount(system.jac_rows, weights=change, minlength=len(system.constraint_names))
             omega = self.options.safety * float(abs(self._solve(factors, w)).max()) / distance**2
-        turns = abs(moved[system.turning])
+        turns = magnitudes[system.turning]
         turn = float(turns.max()) if turns.size else 0.0
         if not turn < MAX_MOTION or not np.isfinite(distance):
             which = system.velocity_names[system.turning[int(np.argmax(turns))]] if turns.size else "no coordinate"
