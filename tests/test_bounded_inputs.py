@@ -257,6 +257,40 @@ def test_inspect_keeps_to_its_budget():
     assert "representation singularity" in result.output
 
 
+def test_a_budget_alarm_that_python_swallows_comes_again():
+    """The budget's first alarm lands in a ``__del__``, where Python prints an exception and goes on
+    (the failure seen: the alarm in a garbage-collector callback, and a 6 s inspection ran 846 s).
+    The alarm repeats, so the work is still cut short, within the budget and one repeat."""
+    inspection = importlib.import_module("kinegen.analysis.inspect")
+
+    class SlowToDelete:
+        def __del__(self):  # holds the process past the budget's end, inside a finalizer
+            end = time.monotonic() + 0.2
+            while time.monotonic() < end:
+                pass
+
+    budget = inspection.Budget(0.05)
+    start = time.monotonic()
+    with pytest.raises(inspection._Expired):
+        with budget.limit():
+            SlowToDelete()  # deleted at once: the first alarm fires in its __del__
+            while time.monotonic() - start < 10:
+                pass
+    assert time.monotonic() - start < 0.05 + 0.2 + 2 * inspection.REPEAT
+    # caught and stopped inside the block (as the determinant's is): the work after it goes on
+    after = 0.0
+    with inspection.Budget(0.05).limit():
+        try:
+            while True:
+                pass
+        except inspection._Expired:
+            inspection.Budget.stop()
+        begun = time.monotonic()
+        while time.monotonic() - begun < 3 * inspection.REPEAT:
+            after += 1.0
+    assert after > 0
+
+
 def test_a_long_determinant_is_summarised_and_written_whole_on_request(tmp_path, monkeypatch):
     """The boom's euler:zxz determinant, with the printing limit lowered below its length: one
     summary line whose counts match the expression's own; --full prints it; --det-file writes a

@@ -53,10 +53,17 @@ class _Expired(Exception):
     """Raised by the budget's alarm inside SymPy's work."""
 
 
+#: seconds between repeated alarms once a budget has run out: Python ignores an exception raised
+#: where it cannot propagate (a garbage collector's callback, a ``__del__``), so an alarm landing
+#: there would otherwise leave the work unbounded (it ran 846 s of a 6 s budget once)
+REPEAT = 0.25
+
+
 class Budget:
     """Seconds of symbolic work allowed to one inspection, enforced by ``SIGALRM`` (in the main
     thread of a Unix process; elsewhere, or with ``seconds=None``, unbounded). SymPy's work is
-    Python code, interrupted between bytecodes when the alarm fires."""
+    Python code, interrupted between bytecodes when the alarm fires; the alarm repeats every
+    :data:`REPEAT` seconds until the code that caught :class:`_Expired` calls :meth:`stop`."""
 
     def __init__(self, seconds: float | None) -> None:
         if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
@@ -87,12 +94,19 @@ class Budget:
             raise _Expired
 
         previous = signal.signal(signal.SIGALRM, expire)
-        signal.setitimer(signal.ITIMER_REAL, min(max(left, 1e-3), 1e7))  # (the timer's range is finite)
+        signal.setitimer(signal.ITIMER_REAL, min(max(left, 1e-3), 1e7), REPEAT)  # (the timer's range is finite)
         try:
             yield
         finally:
             signal.setitimer(signal.ITIMER_REAL, 0)
             signal.signal(signal.SIGALRM, previous)
+
+    @staticmethod
+    def stop() -> None:
+        """No more alarms in this :meth:`limit` block: called where :class:`_Expired` was caught
+        and the work after it goes on unbounded (the exact values the report still needs)."""
+        if hasattr(signal, "setitimer") and threading.current_thread() is threading.main_thread():
+            signal.setitimer(signal.ITIMER_REAL, 0)
 
 
 def summary(expr: sp.Expr) -> str:
@@ -564,6 +578,7 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
         try:
             det = _factored_determinant(symbolic)
         except _Expired:  # the rank is proven; the symbolic form is what ran out of time
+            budget.stop()
             report.unfinished = budget.exhausted
             return report
         report.determinant = det
@@ -597,6 +612,7 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
             try:
                 det = _factored_determinant(on_poses(symbolic.extract(list(block.rows), list(block.cols))), simplify=report.singular)
             except _Expired:  # the block's exact value is known; its symbolic form ran out of time
+                budget.stop()
                 det, unfinished = None, budget.exhausted
             report.determinant = det
             if det is not None:
