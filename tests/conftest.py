@@ -21,6 +21,11 @@ GENERATED = ROOT / "generated"
 #: the tests' own trust store (kinegen.integrity), shared by the test processes of a run and kept
 #: between runs: a committed module is verified by regenerating it once, not in every process
 os.environ["KINEGEN_TRUST"] = str(ROOT / ".pytest_cache" / "kinegen-trust")
+#: the tests' kinegen cache (compiled libraries, kept builds, module code), never the user's
+#: ~/.cache/kinegen: one for every test process of a run, so that the workers of `make test` share
+#: each compile (kinegen.runtime.native locks an object while a process compiles it), kept between
+#: runs as the trust store is. The tests that damage cached files keep a cache of their own.
+os.environ["KINEGEN_CACHE"] = str(ROOT / ".pytest_cache" / "kinegen-cache")
 
 #: The slider crank (models/slider_crank.yaml) at top dead centre, its stored quaternion coordinates: crank
 #: and rod along x, the slider at x = r + l = 0.8 m, where Phi_q loses rank (a mechanism singularity).

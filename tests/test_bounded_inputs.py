@@ -48,11 +48,6 @@ def one_error_line(output: str) -> str:
     return errors[0]
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
-
-
 # ---- expressions -------------------------------------------------------------------------------
 @pytest.mark.parametrize(
     "power", ["((1000000000000**64)**64)**64", "(999999999999**60)**60 * 7", "(2**64)**64 * (3**64)**64 * (5**64)**64 * (7**64)**64"]

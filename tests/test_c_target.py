@@ -34,11 +34,6 @@ STACK = ["-Wvla", "-Wstack-usage=4096"]
 CORE_STACK = ["-Wvla", "-Wstack-usage=2048"]
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
-
-
 def systems(stem: str, case: str | None = None):
     """(Python, compiled) systems of a committed module's case."""
     module = load_module(GENERATED / f"{stem}.py")

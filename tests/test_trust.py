@@ -568,16 +568,25 @@ def test_a_tampered_or_truncated_cached_library_is_rebuilt_never_loaded(built):
     assert not (library.parent / "RAN").exists()
 
 
-def test_concurrent_builds_sharing_the_cache_all_succeed(tmp_path):
+def test_concurrent_builds_sharing_the_cache_all_succeed_and_compile_each_object_once(tmp_path):
+    """Four processes build one model's library into one cache at once: each gets a whole library,
+    no temporary is left, and each object file is compiled once -- a process that needs an object
+    another is compiling waits for it (the compiler, wrapped, writes down every compile)."""
     if CC is None:
         pytest.skip("no C compiler")
+    log, wrapper = tmp_path / "compiles.log", tmp_path / "logging-cc"
+    wrapper.write_text(f'#!/bin/sh\ncase " $* " in *" -c "*) echo "$*" >> {log} ;; esac\nexec {CC} "$@"\n')
+    wrapper.chmod(0o755)
     script = (
         "import sys; from kinegen.runtime import native, load_module;"
         f"m = load_module({str(GENERATED / 'slider_crank_quaternion.py')!r});"
         "native.build_library(native._model_sources(m)); print('ok')"
     )
-    env = {**__import__("os").environ, "KINEGEN_CACHE": str(tmp_path / "shared-cache")}
+    env = {**__import__("os").environ, "KINEGEN_CACHE": str(tmp_path / "shared-cache"), "CC": str(wrapper)}
     runs = [subprocess.Popen([__import__("sys").executable, "-c", script], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(4)]
     outputs = [run.communicate(timeout=300) for run in runs]
     assert all(run.returncode == 0 for run in runs), [o[1][-600:] for o in outputs]
     assert not [p for p in (tmp_path / "shared-cache").rglob("tmp*")]
+    objects = list((tmp_path / "shared-cache" / "objects").glob("*.o"))
+    compiled = log.read_text().splitlines()
+    assert len(objects) >= 2 and len(compiled) == len(objects), compiled  # the solver's and the model's: once each

@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import gc
 import os
+import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -141,8 +143,6 @@ def _result(build: float, trajectory: float, iterations: list[int] | np.ndarray,
 def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATION, compiled: bool = False) -> dict[str, Any]:
     """kinegen: generated module (build = symbolic derivation + code generation, and with
     ``compiled`` the compilation of the model's C with kinegen's C solver, which then solves)."""
-    import os
-    import tempfile
 
     from kinegen import rotations
     from kinegen.codegen import generate, module_name, write_files
@@ -151,8 +151,7 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
 
     w = workload(name)
     param = rotations.get(parametrization)
-    with tempfile.TemporaryDirectory() as folder, tempfile.TemporaryDirectory() as cache:
-        os.environ["KINEGEN_CACHE"] = cache  # a fresh compilation of the model's C, timed as part of the build
+    with tempfile.TemporaryDirectory() as folder, _fresh_cache():  # the model's C compiled afresh, timed as part of the build
         if compiled:  # kinegen's C solver: compiled once per machine for every model (not timed)
             build_solver_object()
         compiling = []
@@ -177,6 +176,23 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
     return {"build": build, "trajectory": trajectory, "iterations": float(results.iterations.mean()), "error": error}
 
 
+@contextmanager
+def _fresh_cache() -> Iterator[None]:
+    """kinegen's cache set to a new, empty folder for the block, then back to what it was (the
+    folder removed): a cache left pointing at the removed folder sent every later compile of the
+    process into a re-created copy of it, outside any cache anyone cleans."""
+    previous = os.environ.get("KINEGEN_CACHE")
+    with tempfile.TemporaryDirectory() as cache:
+        os.environ["KINEGEN_CACHE"] = cache
+        try:
+            yield
+        finally:
+            if previous is None:
+                del os.environ["KINEGEN_CACHE"]
+            else:
+                os.environ["KINEGEN_CACHE"] = previous
+
+
 def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[str, Any]:
     """Memory of one solver instance of the standalone C target: its workspace (the generated
     header's ``<stem>_workspace``: ``*_WORK_DOUBLES`` doubles and ``*_WORK_INTS`` ints), the
@@ -186,7 +202,6 @@ def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[s
     model's tables) is shared by every instance and reported apart."""
     import re
     import subprocess
-    import tempfile
 
     from kinegen import rotations
     from kinegen.bench.callgraph import CallGraph
@@ -422,7 +437,6 @@ def casadi_c_run(name: str) -> dict[str, Any]:
     with ``external`` (all of that is its build). Iterations per step are not reported."""
     import os
     import subprocess
-    import tempfile
 
     import casadi as ca
 

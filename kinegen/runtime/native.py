@@ -29,7 +29,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager, suppress
+from contextlib import ExitStack, contextmanager, suppress
 from functools import cache
 from pathlib import Path
 from types import ModuleType
@@ -189,6 +189,36 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivi
                 missing.append((name, part, command, objects[-1]))
     if not missing:
         return objects
+    with _compiling(store, [cached for _, _, _, cached in missing]):
+        missing = [m for m in missing if not _intact(m[3])]  # compiled by another process while this one waited
+        if missing:
+            _compile(compiler, store, sources, missing)
+    return objects
+
+
+@contextmanager
+def _compiling(store: Path, objects: list[Path]) -> Iterator[None]:
+    """Held while this process compiles ``objects``: a process that needs any of the same ones
+    waits, then finds them in the cache, instead of compiling them a second time beside it (test
+    workers, Dask workers or two commands asking for one model's library at once). One advisory
+    lock (``flock``) per object, taken in the objects' name order (so two processes never wait on
+    each other), released when the block ends or the process does; without ``fcntl``, no lock."""
+    try:
+        import fcntl
+    except ImportError:  # (not on this platform: concurrent builds stay correct, they may only repeat work)
+        yield
+        return
+    locks = store / "locks"
+    locks.mkdir(exist_ok=True)
+    with ExitStack() as held:
+        for name in sorted(o.name for o in objects):
+            handle = held.enter_context(open(locks / name, "a"))
+            fcntl.flock(handle, fcntl.LOCK_EX)  # (closing the file releases it)
+        yield
+
+
+def _compile(compiler: str, store: Path, sources: dict[str, str], missing: list[tuple[str, int | None, list[str], Path]]) -> None:
+    """Compile the ``missing`` objects (name, part, flags, cached path) in parallel into the cache."""
     with _work_folder(store) as work:
         for name, text in sources.items():
             (work / name).write_text(text)
@@ -197,7 +227,6 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivi
                             for o, (name, _, command, _) in zip(made, missing)])  # fmt: skip
         for o, (_, _, _, cached) in zip(made, missing):
             _publish(o, cached)
-    return objects
 
 
 def _object_key(identity: str, command: list[str], name: str, sources: dict[str, str]) -> str:
