@@ -75,11 +75,6 @@ FUZZ = settings(deadline=None, database=None, suppress_health_check=list(HealthC
 COSTLY = settings(FUZZ, phases=[Phase.explicit, Phase.reuse, Phase.generate])
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
-
-
 def _ran(folder: Path) -> bool:
     return any(p.name.startswith(MARKER) for p in folder.rglob("*")) or Path(MARKER).exists()
 
@@ -246,14 +241,16 @@ def test_a_damaged_module_or_c_file_is_refused_before_it_runs(sealed, data, whic
 def test_a_damaged_cached_library_is_rebuilt_never_loaded(sealed, data):
     model, path, _, _ = sealed
     SEEN["tampered"] += 1
-    sources = native_module._model_sources(load_module(path, model))
-    library = native_module.build_library(sources)
-    original = library.read_bytes()
-    damaged = data.draw(damage(original))
-    if damaged == original:
-        return
-    library.write_bytes(damaged)
-    assert native_module.build_library(sources) == library and library.read_bytes() == original
+    with pytest.MonkeyPatch.context() as patch:  # a cache of its own: the library it damages is no other test's
+        patch.setenv("KINEGEN_CACHE", str(path.parent.parent / "kinegen-cache"))
+        sources = native_module._model_sources(load_module(path, model))
+        library = native_module.build_library(sources)
+        original = library.read_bytes()
+        damaged = data.draw(damage(original))
+        if damaged == original:
+            return
+        library.write_bytes(damaged)
+        assert native_module.build_library(sources) == library and library.read_bytes() == original
     OUTCOMES[("tampered", "library rebuilt")] += 1
 
 

@@ -37,11 +37,6 @@ CC = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler")
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
-
-
 # ---- certified steps ---------------------------------------------------------------------------
 #: both solves to max |Phi| <= 1e-12, so that their rows agree to well within 1e-9 m where both are right
 TIGHT = SolverOptions(tolerance=1e-12)
@@ -393,7 +388,10 @@ def test_escapes_leave_no_way_out_of_a_comment_or_a_string():
 
 # ---- modules and libraries are verified before they run --------------------------------------
 @pytest.fixture
-def built(tmp_path):
+def built(tmp_path, tmp_path_factory, monkeypatch):
+    """The four-bar built afresh, with a cache of this test process's own: the tests that use it damage
+    what kinegen keeps there (a module's code, a compiled library), which no other test may load."""
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
     model = tmp_path / "four_bar.yaml"
     shutil.copy(MODELS / "four_bar.yaml", model)
     return model, build(model, "quaternion", tmp_path / "generated")
