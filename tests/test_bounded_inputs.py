@@ -274,12 +274,13 @@ def test_a_budget_alarm_that_python_swallows_comes_again():
     assert time.monotonic() - start < 0.05 + 0.2 + 2 * inspection.REPEAT
     # caught and stopped inside the block (as the determinant's is): the work after it goes on
     after = 0.0
-    with inspection.Budget(0.05).limit():
+    budget = inspection.Budget(0.05)
+    with budget.limit():
         try:
             while True:
                 pass
         except inspection._Expired:
-            inspection.Budget.stop()
+            budget.stop()
         begun = time.monotonic()
         while time.monotonic() - begun < 3 * inspection.REPEAT:
             after += 1.0

@@ -70,6 +70,7 @@ class Budget:
             raise ValueError(f"a budget is a positive, finite number of seconds (or None: unbounded), not {seconds!r}")
         self.seconds = seconds
         self.start = time.monotonic()
+        self.stopped = False
 
     def remaining(self) -> float | None:
         return None if self.seconds is None else self.seconds - (time.monotonic() - self.start)
@@ -91,8 +92,10 @@ class Budget:
             return
 
         def expire(_signum, _frame):
-            raise _Expired
+            if not self.stopped:  # (an alarm already on its way when stop() disarmed the timer is let pass)
+                raise _Expired
 
+        self.stopped = False
         previous = signal.signal(signal.SIGALRM, expire)
         signal.setitimer(signal.ITIMER_REAL, min(max(left, 1e-3), 1e7), REPEAT)  # (the timer's range is finite)
         try:
@@ -101,10 +104,10 @@ class Budget:
             signal.setitimer(signal.ITIMER_REAL, 0)
             signal.signal(signal.SIGALRM, previous)
 
-    @staticmethod
-    def stop() -> None:
+    def stop(self) -> None:
         """No more alarms in this :meth:`limit` block: called where :class:`_Expired` was caught
         and the work after it goes on unbounded (the exact values the report still needs)."""
+        self.stopped = True
         if hasattr(signal, "setitimer") and threading.current_thread() is threading.main_thread():
             signal.setitimer(signal.ITIMER_REAL, 0)
 
