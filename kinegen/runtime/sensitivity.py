@@ -99,6 +99,8 @@ def _state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.n
     parts = system.native.sensitivities(*state) if system.native is not None and system.native.sensitivity_doubles else None
     if parts is None:  # no compiled sensitivity kernels (none in the module, or they would not compile)
         parts = _python_sensitivities(system, *state)
+    if len(done) == len(results.times):  # every time point converged: the computed arrays are the whole answer
+        return tuple(np.asarray(part, dtype=float).reshape(len(results.times), n, n_design) for part in parts)
     out = tuple(np.full((len(results.times), n, n_design), np.nan) for _ in range(3))
     for full, part in zip(out, parts):
         full[done] = part

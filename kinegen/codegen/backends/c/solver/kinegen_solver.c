@@ -1182,6 +1182,55 @@ int kinegen_input_effects(kinegen_solver *s, int count, const double *Q, const d
     return regular;
 }
 
+
+/* r -= f x and r += f x over n values (rows of the sensitivities' n_p columns; r and x never overlap),
+ * four at a time: statements the compiler turns into vector instructions at -O2, where a loop over a
+ * variable n stays one value an instruction (the same operations on each value: the same bits). */
+static inline void rows_minus(double *restrict r, double f, const double *restrict x, int n) {
+    int j = 0;
+    for (; j + 4 <= n; j += 4) {
+        r[j] -= f * x[j];
+        r[j + 1] -= f * x[j + 1];
+        r[j + 2] -= f * x[j + 2];
+        r[j + 3] -= f * x[j + 3];
+    }
+    for (; j < n; ++j) r[j] -= f * x[j];
+}
+
+static inline void rows_scale(double *r, double f, int n) {
+    int j = 0;
+    for (; j + 4 <= n; j += 4) {
+        r[j] *= f;
+        r[j + 1] *= f;
+        r[j + 2] *= f;
+        r[j + 3] *= f;
+    }
+    for (; j < n; ++j) r[j] *= f;
+}
+
+/* r = f x (f = -1: the negation, exactly) */
+static inline void rows_scale_into(double *restrict r, double f, const double *restrict x, int n) {
+    int j = 0;
+    for (; j + 4 <= n; j += 4) {
+        r[j] = f * x[j];
+        r[j + 1] = f * x[j + 1];
+        r[j + 2] = f * x[j + 2];
+        r[j + 3] = f * x[j + 3];
+    }
+    for (; j < n; ++j) r[j] = f * x[j];
+}
+
+static inline void rows_plus(double *restrict r, double f, const double *restrict x, int n) {
+    int j = 0;
+    for (; j + 4 <= n; j += 4) {
+        r[j] += f * x[j];
+        r[j + 1] += f * x[j + 1];
+        r[j + 2] += f * x[j + 2];
+        r[j + 3] += f * x[j + 3];
+    }
+    for (; j < n; ++j) r[j] += f * x[j];
+}
+
 /* rhs (n_v x n_p, row-major) = the sparse matrix (values at pattern) times [X1; X2; I] (each n_v x
  * n_p): columns below n_v multiply rows of X1, the next n_v rows of X2, and the columns from
  * first_parameter on are the parameters' (identity). */
@@ -1195,7 +1244,7 @@ static void sparse_times(const kinegen_pattern *pattern, const double *values, c
             row[c - first_parameter] += value;
         } else {
             const double *x = c < nv ? X1 + (size_t)c * np : X2 + (size_t)(c - nv) * np;
-            for (int j = 0; j < np; ++j) row[j] += value * x[j];
+            rows_plus(row, value, x, np);
         }
     }
 }
@@ -1215,8 +1264,7 @@ static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *
             memcpy(ri, rhs + (size_t)m->row_order[row] * np, sizeof(double) * (size_t)np);
             for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) {
                 double f = s->off[e];
-                const double *yc = y + (size_t)m->off_col[e] * np;
-                for (int j = 0; j < np; ++j) ri[j] -= f * yc[j];
+                rows_minus(ri, f, y + (size_t)m->off_col[e] * np, np);
             }
         }
         for (int k = 0; k < n; ++k) {
@@ -1232,23 +1280,21 @@ static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *
         for (int k = 0; k < n; ++k)
             for (int i = k + 1; i < n; ++i) {
                 double f = A[i + k * n];
-                if (f != 0.0)
-                    for (int j = 0; j < np; ++j) r[(size_t)i * np + j] -= f * r[(size_t)k * np + j];
+                if (f != 0.0) rows_minus(r + (size_t)i * np, f, r + (size_t)k * np, np);
             }
         for (int k = n - 1; k >= 0; --k) {
             double inverse = 1.0 / A[k + k * n];
-            for (int j = 0; j < np; ++j) r[(size_t)k * np + j] *= inverse;
+            rows_scale(r + (size_t)k * np, inverse, np);
             for (int i = 0; i < k; ++i) {
                 double f = A[i + k * n];
-                if (f != 0.0)
-                    for (int j = 0; j < np; ++j) r[(size_t)i * np + j] -= f * r[(size_t)k * np + j];
+                if (f != 0.0) rows_minus(r + (size_t)i * np, f, r + (size_t)k * np, np);
             }
         }
     }
     for (int c = 0; c < m->n_v; ++c) {
         const double *from = y + (size_t)c * np;
         double *to = out + (size_t)m->col_order[c] * np;
-        for (int j = 0; j < np; ++j) to[j] = -from[j];
+        rows_scale_into(to, -1.0, from, np);
     }
 }
 
