@@ -18,7 +18,12 @@ from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import ExitCode, ModelError
 from kinegen.model import load, loads
 from kinegen.runtime import from_module, kinematics, solve
-from kinegen.runtime.sensitivity import point_sensitivity, relative_angle_sensitivity, smallest_singular_value_sensitivity
+from kinegen.runtime.sensitivity import (
+    point_sensitivity,
+    relative_angle_sensitivity,
+    smallest_singular_value_sensitivity,
+    state_sensitivities,
+)
 from tests.conftest import GENERATED, MODELS
 
 PLAIN = (MODELS / "slider_crank.yaml").read_text()
@@ -243,6 +248,28 @@ def test_slider_sensitivities_are_the_closed_form_derivatives(tmp_path, param, c
     # the crank pin B = r (cos θ, sin θ): d/dr = (cos θ, sin θ) whatever the rod
     assert np.abs(point_sensitivity(results, "crank", "B", parameter="r")[:, :2] - np.c_[np.cos(theta), np.sin(theta)]).max() < 1e-10
     assert np.abs(point_sensitivity(results, "crank", "B", parameter="l")).max() < 1e-12
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_run_stopped_early_has_nan_sensitivities_at_its_failed_point_and_the_full_runs_elsewhere(tmp_path, compiled):
+    """The point a run could not solve (converged False, q, v, a NaN, as ``on_failure="stop"`` leaves it)
+    gets NaN sensitivities; every other point the same as when all converged (C: the same bits, one
+    time point at a time; Python: batches of points, to 1e-12)."""
+    import dataclasses
+
+    module = _design_module(tmp_path, design_model(), "quaternion")
+    full = solve(from_module(module, "run", compiled=compiled, design={"r": 0.21, "l": 0.65}))
+    converged = np.ones(len(full.times), dtype=bool)
+    converged[-1] = False
+    nan_last = {name: np.where(converged[:, None], getattr(full, name), np.nan) for name in ("q", "v", "a")}
+    stopped = dataclasses.replace(full, converged=converged, **nan_last)
+    for whole, part in zip(state_sensitivities(full), state_sensitivities(stopped)):
+        assert whole.shape == part.shape and np.isfinite(whole).all()
+        assert np.isnan(part[-1]).all()
+        if compiled:
+            assert np.array_equal(part[:-1], whole[:-1])
+        else:
+            assert np.abs(part[:-1] - whole[:-1]).max() <= 1e-12 * np.abs(whole).max()
 
 
 FOUR_BAR_PARAMETERS = "parameters:\n  a: 0.3    # crank A-B\n  b: 0.9    # coupler B-C\n  c: 0.7    # rocker D-C\n  d: 1.0    # ground A-D\n"

@@ -295,9 +295,10 @@ static inline int lu_block(double *restrict A, int *restrict piv, const int n, d
         KINEGEN_UNROLL
         for (int j = k + 1; j < n; ++j) {
             double f = A[k + j * n];
-            if (f != 0.0)
+            if (f != 0.0) {
                 KINEGEN_UNROLL
                 for (int i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * f;
+            }
         }
     }
     *low_out = low;
@@ -1182,10 +1183,10 @@ int kinegen_input_effects(kinegen_solver *s, int count, const double *Q, const d
     return regular;
 }
 
-
-/* r -= f x and r += f x over n values (rows of the sensitivities' n_p columns; r and x never overlap),
- * four at a time: statements the compiler turns into vector instructions at -O2, where a loop over a
- * variable n stays one value an instruction (the same operations on each value: the same bits). */
+/* The sensitivities' row operations over n values (a row of their n_p columns): r -= f x, r *= f, r = f x
+ * and r += f x (r and x never overlap), four values a statement: the compiler makes vector instructions
+ * of those at -O2, where it leaves a loop over a variable n one value an instruction. The same operations
+ * on each value: the same bits. */
 static inline void rows_minus(double *restrict r, double f, const double *restrict x, int n) {
     int j = 0;
     for (; j + 4 <= n; j += 4) {
