@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -255,8 +257,6 @@ def test_a_run_stopped_early_has_nan_sensitivities_at_its_failed_point_and_the_f
     """The point a run could not solve (converged False, q, v, a NaN, as ``on_failure="stop"`` leaves it)
     gets NaN sensitivities; every other point the same as when all converged (C: the same bits, one
     time point at a time; Python: batches of points, to 1e-12)."""
-    import dataclasses
-
     module = _design_module(tmp_path, design_model(), "quaternion")
     full = solve(from_module(module, "run", compiled=compiled, design={"r": 0.21, "l": 0.65}))
     converged = np.ones(len(full.times), dtype=bool)
