@@ -352,3 +352,53 @@ def test_the_runtime_binds_every_shared_kernel_from_the_declaration_alone():
     assert len(outputs) == len(module.KERNELS["supply"][1])
     for name, values in zip(module.KERNELS["supply"][1], outputs):
         assert np.array_equal(np.broadcast_arrays(*values), np.broadcast_arrays(*getattr(module, name)(q, v, force, p))), name
+
+
+def _python_columns(values, size: int, count: int) -> np.ndarray:
+    """A Python kernel output at a batch as (size, count): rows that are constants broadcast."""
+    if isinstance(values, np.ndarray) and values.ndim == 2 and values.shape[1] == count:
+        return values.reshape(size, count)
+    return np.array([np.broadcast_to(np.asarray(x, dtype=float), (count,)) for x in values]).reshape(size, count)
+
+
+def test_every_compiled_kernel_runs_over_a_batch_in_one_call_with_the_python_functions_values():
+    """kinegen_kernel_each (NativeCase.each) runs any declared kernel -- the case's, the layout's and
+    the complete library's sensitivity kernels -- over a batch of configurations in one C call: each
+    output equal to the Python module's function at the same batch (to rounding), one configuration
+    giving the batch's column, and an argument of a wrong length refused before C reads it."""
+    module = load_module(GENERATED / "excavator_quaternion.py")
+    system = generated_system("excavator_quaternion", "digging", compiled=True)
+    native = system.native.sensitivity_case()
+    assert native is not None and {"dvel", "dacc", "phi_p", "frames_d", "actuation", "supply", "inputs"} <= set(native.kernels)
+    results = solve(system)
+    rng = np.random.default_rng(11)
+    take = slice(None, None, 23)
+    count = len(results.times[take])
+    n_v, n_inputs = system.n_velocity, system.n_inputs
+    arguments = {
+        "q": results.q[take].T + 1e-3 * rng.normal(size=(system.n_stored, count)), "v": results.v[take].T, "a": results.a[take].T,
+        "u": results.inputs[take].T, "ud": rng.normal(size=(n_inputs, count)), "udd": rng.normal(size=(n_inputs, count)),
+        "t": results.times[take], "span": np.array([results.times[take], results.times[take] + 0.01]),
+        "w": rng.normal(size=(n_v, count)), "y": rng.normal(size=(n_v, count)), "z": rng.normal(size=(n_v, count)),
+        "f": rng.normal(scale=1e5, size=(len(system.statics.elements), count)),
+    }  # fmt: skip
+    p = [system.design[name] for name in module.DESIGN]
+    outputs = module.CASES["digging"]["outputs"]
+    for name, kernel in native.kernels.items():
+        compiled = native.each(name, **{s: arguments[s] for s in kernel.slots if s != "p"})
+        slots = [arguments[s] if s != "p" else p for s in kernel.slots]
+        batch = kernel.slots != ("p",)  # (the design's own kernels: one value each)
+        for output, size, values in zip(kernel.outputs, kernel.sizes, compiled):
+            python = outputs[output] if output in outputs else getattr(module, output)
+            expected = _python_columns(python(*slots), size, count) if batch else np.asarray(python(p), dtype=float).reshape(size)
+            assert values.shape == ((size, count) if batch else (size,)), (name, output)
+            assert np.allclose(values, expected, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(expected).max())), (name, output)
+        if not batch:
+            continue
+        one = native.each(name, **{s: arguments[s][..., 5] for s in kernel.slots if s != "p"})
+        assert all(np.array_equal(x, values[:, 5]) for x, values in zip(one, compiled)), name
+    with pytest.raises(ValueError, match="argument q of shape"):
+        native.each("actuation", q=arguments["q"][:-1])
+    # the compiled system's force-solve kernel is this one
+    matrix = system.statics.matrix(arguments["q"])
+    assert np.allclose(matrix, _python_columns(module.actuation_matrix(arguments["q"], p), len(matrix), count), rtol=1e-12, atol=1e-9)

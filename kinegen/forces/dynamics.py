@@ -231,9 +231,10 @@ class MachineWrenches:
             d_acceleration = (self._frame(name, "acceleration") + cross(d_omega_dot, r) + cross(w_dot, d_arm)
                               + cross(d_omega, cross(w, r)) + cross(w, cross(d_omega, r) + cross(w, d_arm)))  # fmt: skip
             d_force = d_force - acceleration[:, :, None] * d_mass[None, None] - mass * d_acceleration
-            d_tensor = (np.einsum("kijp,jl,kml->kimp", d_rotation, body_tensor, rotation)
-                        + np.einsum("kij,jlp,kml->kimp", rotation, d_body_tensor, rotation)
-                        + np.einsum("kij,jl,kmlp->kimp", rotation, body_tensor, d_rotation))  # fmt: skip
+            # (three factors: einsum contracts them pairwise only when asked, ~3x faster here)
+            d_tensor = (np.einsum("kijp,jl,kml->kimp", d_rotation, body_tensor, rotation, optimize=True)
+                        + np.einsum("kij,jlp,kml->kimp", rotation, d_body_tensor, rotation, optimize=True)
+                        + np.einsum("kij,jl,kmlp->kimp", rotation, body_tensor, d_rotation, optimize=True))  # fmt: skip
             spin = np.einsum("kij,kj->ki", tensor, omega)[:, :, None]
             d_spin = np.einsum("kijp,kj->kip", d_tensor, omega) + np.einsum("kij,kjp->kip", tensor, d_omega)
             d_moment = -(np.einsum("kijp,kj->kip", d_tensor, omega_dot) + np.einsum("kij,kjp->kip", tensor, d_omega_dot)

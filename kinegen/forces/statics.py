@@ -297,6 +297,19 @@ def _time_function(expr: sp.Expr):
     return evaluate
 
 
+class PerBody(dict):
+    """A body's value, by its name, computed on the first lookup and kept (a force at one point
+    needs one body's maps, not every body's)."""
+
+    def __init__(self, compute: Any) -> None:
+        super().__init__()
+        self.compute = compute
+
+    def __missing__(self, body: str) -> Any:
+        value = self[body] = self.compute(body)
+        return value
+
+
 class Statics:
     """The numbers a force solve needs at every time point (or pose) of ``results``: the rows
     (:meth:`matrix`), the loads' generalized forces, the solve, reactions and pressures."""
@@ -408,11 +421,11 @@ class Statics:
 
     # ---- kinematic maps --------------------------------------------------------------
     @cached_property
-    def tangents(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Per body: (T_v, T_ω), each (K, 3, n_v of the body): [ṙ; ω] = T v_b."""
+    def tangents(self) -> PerBody:
+        """Per body: (T_v, T_ω), each (K, 3, n_v of the body): [ṙ; ω] = T v_b (computed when first asked for)."""
         p = self.system.parametrization
-        out = {}
-        for body in self.system.bodies:
+
+        def tangent(body: str) -> tuple[np.ndarray, np.ndarray]:
             q = self.system.body_coordinates(self.results.q, body)
             unit = np.zeros((len(q), p.nv))
             tv, tw = np.empty((len(q), 3, p.nv)), np.empty((len(q), 3, p.nv))
@@ -420,14 +433,15 @@ class Statics:
                 unit[:] = 0.0
                 unit[:, k] = 1.0
                 tv[:, :, k], tw[:, :, k] = p.frame_velocity(q, unit)
-            out[body] = tv, tw
-        return out
+            return tv, tw
+
+        return PerBody(tangent)
 
     @cached_property
-    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Per body: origin (K, 3) and rotation matrix (K, 3, 3)."""
+    def poses(self) -> PerBody:
+        """Per body: origin (K, 3) and rotation matrix (K, 3, 3) (computed when first asked for)."""
         p = self.system.parametrization
-        return {body: p.pose(self.system.body_coordinates(self.results.q, body)) for body in self.system.bodies}
+        return PerBody(lambda body: p.pose(self.system.body_coordinates(self.results.q, body)))
 
     def columns(self, body: str) -> slice:
         offset = self.system.bodies[body][1]

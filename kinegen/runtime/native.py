@@ -28,9 +28,9 @@ import tempfile
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager, suppress
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 from types import ModuleType
 
@@ -406,6 +406,7 @@ class NativeCase:
             for output, size in zip(kernel.outputs, kernel.sizes):
                 sizes[output] = max(size, sizes.get(output, 0))
         self._out = {output: np.zeros(size) for output, size in sizes.items()}
+        self._pointers: dict[str, int] = {}  # kernel name -> its kinegen_kernel in the library
         self._calls = {
             name: kernel.bind(self._arrays, self._out)
             for name, kernel in self.kernels.items() if set(kernel.slots) <= set(self._arrays)
@@ -419,6 +420,53 @@ class NativeCase:
         self._calls[kernel]()
         k = self.kernels[kernel]
         return tuple(self._out[o][:size].copy() for o, size in zip(k.outputs, k.sizes))
+
+    def each(self, kernel: str, **arguments: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The outputs of a kernel the library declares at many configurations, in one C call
+        (``kinegen_kernel_each``), as the Python module's functions take and give them: each argument
+        by slot name, (n,) for every configuration or (n, K) one column each (``t``: a value or (K,)
+        values; ``p``: the case's design when not given); each output (size, K), or (size,) when no
+        argument has columns. An argument of another length than its slot's is a ValueError."""
+        declared = self.kernels[kernel]
+        arguments.setdefault("p", self.design)
+        sizes = self._slot_sizes
+        count, rows, strides = None, [], []
+        for slot in declared.slots:
+            x = np.asarray(arguments[slot], dtype=float)
+            if slot == "t":
+                x = x.reshape(1, -1) if x.size > 1 else x.reshape(1)
+            if x.shape[0] != sizes[slot] or x.ndim > 2:
+                raise ValueError(f"kernel {kernel}: argument {slot} of shape {x.shape}, its slot holds {sizes[slot]} values")
+            if x.ndim == 2:
+                if count is not None and x.shape[1] != count:
+                    raise ValueError(f"kernel {kernel}: argument {slot} has {x.shape[1]} columns, another {count}")
+                count = x.shape[1]
+                x = x.T
+            x = np.ascontiguousarray(x)  # (a column of a batch is a strided view)
+            rows.append(x if x.size else np.zeros(1))
+            strides.append(x.shape[1] if x.ndim == 2 else 0)
+        outputs = tuple(np.empty((count or 1, size)) for size in declared.sizes)
+        pointers = (ctypes.c_void_p * max(1, len(rows)))(*(x.ctypes.data for x in rows))
+        steps = (ctypes.c_int * max(1, len(rows)))(*strides)
+        targets = (ctypes.c_void_p * max(1, len(outputs)))(*(y.ctypes.data for y in outputs))
+        status = self.library.kinegen_kernel_each(self._kernel_pointer(kernel), count or 1, pointers, steps, targets)
+        if status != self.abi.status["ok"]:
+            raise ValueError(f"kernel {kernel}: {self.abi.status_name(status)} from kinegen_kernel_each")
+        return tuple(y[0] if count is None else y.T for y in outputs)
+
+    @cached_property
+    def _slot_sizes(self) -> dict[str, int]:
+        """How many values each argument slot holds."""
+        n_v, n_inputs = self.n_v, self.n_inputs
+        return {"q": self.n_q, "v": n_v, "a": n_v, "w": n_v, "y": n_v, "z": n_v, "u": n_inputs, "ud": n_inputs, "udd": n_inputs,
+                "t": 1, "span": 2, "p": 0 if self.design is None else len(self.design),
+                "f": 0 if self.statics is None else self.statics.n_elements}  # fmt: skip
+
+    def _kernel_pointer(self, kernel: str) -> int:
+        found = self._pointers.get(kernel)
+        if found is None:
+            found = self._pointers[kernel] = self.library.kinegen_find_kernel(self.address, kernel.encode())
+        return found
 
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Phi and the Phi_q values at one configuration."""
@@ -437,17 +485,9 @@ class NativeCase:
         Phi_q per time point); NaN where Phi_q is singular. A library compiled without the
         sensitivity kernels has the complete one compiled (cached) and loaded on the first call;
         None when that cannot be compiled (said once as a warning: the caller computes them in Python)."""
-        if "dvel" not in self.kernels and self.complete is not None:
-            if self._complete is None:
-                try:
-                    self._complete = self.complete()
-                except CompileError as exc:
-                    if str(exc) not in _WARNED:
-                        _WARNED.add(str(exc))
-                        warnings.warn(f"no compiled sensitivity kernels ({exc}); kinegen computes them with the Python functions",
-                                      RuntimeWarning, stacklevel=2)  # fmt: skip
-                    return None
-            return self._complete.sensitivities(q, v, a, u, ud, udd)
+        if "dvel" not in self.kernels:
+            complete = self.sensitivity_case()
+            return None if complete is None or complete is self else complete.sensitivities(q, v, a, u, ud, udd)
         rows = [np.ascontiguousarray(np.asarray(x, dtype=float).T) for x in (q, v, a, u, ud, udd)]
         count = rows[0].shape[0]
         out = tuple(np.empty((count, self.n_v, len(self.design))) for _ in range(3))
@@ -455,6 +495,41 @@ class NativeCase:
         solver = self.solver(Options.newton_only(1e-10, 1e-14))
         self.library.kinegen_sensitivities(solver.pointer, count, *(x.ctypes.data for x in (*rows, *out, work)))
         return out
+
+    def sensitivity_case(self) -> NativeCase | None:
+        """This case with its sensitivity kernels (``dvel``, ...) compiled: itself, or the same case in
+        the complete library (compiled, cached and loaded on the first call); None when the model has
+        none or they cannot be compiled (said once as a warning: the caller uses the Python functions)."""
+        if "dvel" in self.kernels:
+            return self
+        if self.complete is None:
+            return None
+        if self._complete is None:
+            try:
+                self._complete = self.complete()
+            except CompileError as exc:
+                if str(exc) not in _WARNED:
+                    _WARNED.add(str(exc))
+                    warnings.warn(f"no compiled sensitivity kernels ({exc}); kinegen computes them with the Python functions",
+                                  RuntimeWarning, stacklevel=3)  # fmt: skip
+                self.complete = None
+                return None
+        return self._complete
+
+    def function(self, kernel: str, slots: Sequence[str] | None = None, sensitivity: bool = False) -> Callable[..., tuple]:
+        """A kernel as the Python module's functions are called: positional arguments in the order
+        of ``slots`` (default: the kernel's own, p left out: the case's design), each a value or a
+        batch of columns (:meth:`each`), returning its outputs as a tuple. ``sensitivity``: a kernel
+        of the complete library (:meth:`sensitivity_case`), found on the first call."""
+        names = tuple(s for s in self.kernels[kernel].slots if s != "p") if slots is None else tuple(slots)
+
+        def call(*arguments: np.ndarray) -> tuple[np.ndarray, ...]:
+            case = self.sensitivity_case() if sensitivity else self
+            if case is None:
+                raise CompileError(f"no compiled kernel {kernel}")
+            return case.each(kernel, **dict(zip(names, arguments)))
+
+        return call
 
     @property
     def statics(self) -> ctypes.Structure | None:

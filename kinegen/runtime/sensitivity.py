@@ -59,13 +59,14 @@ def _trajectory(results: Results) -> tuple[np.ndarray, ...]:
 
 def _each(x: np.ndarray, n_design: int) -> np.ndarray:
     """(n, K) -> (n, K n_design): every time point's column once per parameter (one kernel call
-    for every (time point, parameter) pair)."""
-    return np.repeat(x, n_design, axis=1)
+    for every (time point, parameter) pair). Laid out column by column (the transpose of a
+    C-contiguous array), as the compiled kernels read a batch: no copy on the way there."""
+    return np.repeat(x.T, n_design, axis=0).T
 
 
 def _pairs(x: np.ndarray) -> np.ndarray:
-    """(K, n, n_design) -> (n, K n_design), in the order of :func:`_each`."""
-    return x.transpose(1, 0, 2).reshape(x.shape[1], -1)
+    """(K, n, n_design) -> (n, K n_design), in the order of :func:`_each`, laid out as it lays out."""
+    return x.transpose(0, 2, 1).reshape(-1, x.shape[1]).T
 
 
 def _check(system: NumericSystem) -> None:

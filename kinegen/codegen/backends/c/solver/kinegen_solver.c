@@ -70,6 +70,21 @@ const kinegen_kernel *kinegen_find_kernel(const kinegen_model *m, const char *na
     return NULL;
 }
 
+int kinegen_kernel_each(const kinegen_kernel *kernel, int count, const double *const *arguments, const int *strides,
+                        double *const *outputs) {
+    int n_slots = kernel->slots[0] != '\0';
+    for (const char *c = kernel->slots; *c != '\0'; ++c) n_slots += *c == ',';
+    if (n_slots > KINEGEN_MAX_SLOTS || kernel->n_outputs > KINEGEN_MAX_OUTPUTS) return KINEGEN_MODEL;
+    const double *x[KINEGEN_MAX_SLOTS];
+    double *y[KINEGEN_MAX_OUTPUTS];
+    for (int i = 0; i < count; ++i) {
+        for (int j = 0; j < n_slots; ++j) x[j] = arguments[j] + (size_t)i * (size_t)strides[j];
+        for (int o = 0; o < kernel->n_outputs; ++o) y[o] = outputs[o] + (size_t)i * (size_t)kernel->output_sizes[o];
+        kernel->call(x, y);
+    }
+    return KINEGEN_OK;
+}
+
 int kinegen_case_inputs(const kinegen_model *m, double t, double *out) {
     const kinegen_kernel *k = kinegen_find_kernel(m, "inputs");
     if (k == NULL) return KINEGEN_MODEL;
@@ -1665,6 +1680,8 @@ const kinegen_struct kinegen_structs[] = {
                           int *ints))                                                                                   \
     X(const kinegen_kernel *, kinegen_find_kernel, (const kinegen_model *model, const char *name))                    \
     X(int, kinegen_case_inputs, (const kinegen_model *model, double t, double *out))                                  \
+    X(int, kinegen_kernel_each, (const kinegen_kernel *kernel, int count, const double *const *arguments,            \
+                                 const int *strides, double *const *outputs))                                          \
     X(void, kinegen_set_design, (kinegen_solver *s, const double *p))                                                 \
     X(int, kinegen_start, (kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd)) \
     X(int, kinegen_step, (kinegen_solver *s, double t, const double *u, const double *ud, const double *udd))        \

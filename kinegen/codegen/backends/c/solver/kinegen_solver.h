@@ -369,6 +369,18 @@ int kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_op
 /* The kernel of that name in the case's table, else in its layout's; NULL: none. */
 const kinegen_kernel *kinegen_find_kernel(const kinegen_model *model, const char *name);
 
+/* The most argument slots and outputs kinegen_kernel_each runs a kernel with. */
+#define KINEGEN_MAX_SLOTS 16
+#define KINEGEN_MAX_OUTPUTS 16
+
+/* Runs `kernel` at `count` configurations, one call each, without a solver: its argument slot j (in the order of
+ * kernel->slots) of configuration i at arguments[j] + i * strides[j] (stride 0: the same values at every one),
+ * its output o of configuration i at outputs[o] + i * kernel->output_sizes[o]. What kinegen's runtime evaluates a
+ * kernel over many configurations by (a batch of poses, a trajectory's points) in one call. Returns KINEGEN_OK,
+ * or KINEGEN_MODEL (nothing run) for a kernel of more than KINEGEN_MAX_SLOTS slots or KINEGEN_MAX_OUTPUTS outputs. */
+int kinegen_kernel_each(const kinegen_kernel *kernel, int count, const double *const *arguments, const int *strides,
+                        double *const *outputs);
+
 /* The case's own time functions at t (its inputs kernel): u, du/dt, d2u/dt2 of every driver into out
  * (3 n_inputs). Returns KINEGEN_OK, or KINEGEN_MODEL for a case without them. */
 int kinegen_case_inputs(const kinegen_model *model, double t, double *out);
