@@ -283,6 +283,21 @@ def compile_in_background(model_files: dict[str, str]) -> threading.Thread:
     return thread
 
 
+def compile_solver_in_background() -> threading.Thread:
+    """Start compiling kinegen's C solver object (:func:`build_solver_object`, cached) in a thread: a
+    build starts it first, so that it compiles while the model is loaded and derived (one core is idle
+    then) rather than beside the model's C; a library that needs it meanwhile waits for it (the
+    object's lock). A failure is left for the first use to report."""
+
+    def build() -> None:
+        with suppress(KinegenError, OSError):
+            build_solver_object()
+
+    thread = threading.Thread(target=build, name="kinegen-compile-solver", daemon=True)
+    thread.start()
+    return thread
+
+
 def _run_all(compiler: str, commands: list[list[str]]) -> None:
     """Run the compiler commands in parallel; a refused -march=native is retried without it."""
     try:

@@ -44,6 +44,10 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
     def check(source: str, model: str) -> None:
         checks.extend(check_source(source, model))
 
+    if target != "c":  # kinegen's C solver does not depend on the model: compiled (once, cached) while the model is derived
+        from kinegen.runtime.native import compile_solver_in_background
+
+        compile_solver_in_background()
     model = load(model_file)
     stem = module_name(model, get(parametrization))
     if target == "c":
