@@ -734,39 +734,55 @@ def test_the_solver_object_is_compiled_once_for_every_model(tmp_path, monkeypatc
 
 
 def test_the_sensitivity_kernels_compile_when_first_asked_for(tmp_path, monkeypatch):
-    """The excavator's C has parts that only its sensitivity kernels need (config.sensitivity_parts, about
-    half its lines): a solve loads a library compiled without them (part 0 with -DKINEGEN_NO_SENSITIVITIES:
-    no phi_p, dvel or dacc in its kernel tables), and the first sensitivities compile the complete one,
-    sharing the other parts' objects; its results equal the Python kernels' to 1e-12 of their scale."""
+    """A model's C with parts that only its sensitivity kernels need (config.sensitivity_parts; the
+    excavator's, about half its lines): a solve loads a library compiled without them (part 0 with
+    -DKINEGEN_NO_SENSITIVITIES: no phi_p, dvel or dacc in its kernel tables), and the first sensitivities
+    compile the complete one, sharing the other parts' objects; its results equal the Python kernels' to
+    1e-12 of their scale. Compiled on the slider-crank with design parameters, its C split as the
+    excavator's is (parts of at most 300 statements), in an empty cache: what is compiled is counted."""
+    from kinegen.codegen import generate, write_files
+    from kinegen.model import loads
     from kinegen.runtime import sensitivity
+    from tests.test_design import design_model
 
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
-    objects = tmp_path / "cache" / "objects"
     text = (GENERATED / "excavator_quaternion.c").read_text()
+    assert config.sensitivity_parts(text) and 0 not in config.sensitivity_parts(text) and config.has_sensitivity_parts(text)
+    assert not config.has_sensitivity_parts((GENERATED / "excavator_euler_parameters.c").read_text())  # built without them
+    monkeypatch.setattr(config, "FILE_STATEMENTS", 300)
+    made = generate(loads(design_model(), "slider_crank_design.yaml"), rotations.get("quaternion"))
+    write_files(tmp_path, {name: content for files in made.values() for name, content in files.items()})
+    text = (tmp_path / "slider_crank_quaternion.c").read_text()
     parts, deferred = config.source_parts(text), config.sensitivity_parts(text)
     assert deferred and set(deferred) < set(parts) and 0 not in deferred and config.has_sensitivity_parts(text)
-    assert not config.has_sensitivity_parts((GENERATED / "excavator_euler_parameters.c").read_text())  # built without them
-    module = load_module(GENERATED / "excavator_quaternion.py")
-    system = from_module(module, "digging")
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    objects = tmp_path / "cache" / "objects"
+    module = load_module(tmp_path / "slider_crank_quaternion.py")
+    system = from_module(module)
     assert not {"phi_p", "dvel", "dacc"} & set(system.native.kernels)
     assert len(list(objects.glob("*.o"))) == 1 + len(parts) - len(deferred)  # the solver, part 0 without them, the others
     times = np.linspace(system.t0, system.t1, 21)
     compiled = sensitivity.state_sensitivities(Solver(system).solve(times))
     assert {"phi_p", "dvel", "dacc"} <= set(system.native._complete.kernels)
     assert len(list(objects.glob("*.o"))) == 2 + len(parts)  # part 0 whole and the deferred parts: the rest shared
-    reference = sensitivity.state_sensitivities(Solver(from_module(module, "digging", compiled=False)).solve(times))
+    reference = sensitivity.state_sensitivities(Solver(from_module(module, compiled=False)).solve(times))
     for c, p in zip(compiled, reference):
         assert np.abs(c - p).max() <= 1e-12 * max(1.0, np.abs(p).max())
     # a case whose complete library cannot be compiled (here: the compiler is gone) computes them in Python, saying so
-    other = from_module(module, "level_cut")
+    other = from_module(module)
     assert not {"phi_p", "dvel", "dacc"} & set(other.native.kernels)
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     results = Solver(other).solve(np.linspace(other.t0, other.t1, 11))
     with pytest.warns(RuntimeWarning, match="no compiled sensitivity kernels"):
         fallback = sensitivity.state_sensitivities(results)
-    python = sensitivity.state_sensitivities(Solver(from_module(module, "level_cut", compiled=False)).solve(results.times))
+    python = sensitivity.state_sensitivities(Solver(from_module(module, compiled=False)).solve(results.times))
     for c, p in zip(fallback, python):
         assert np.abs(c - p).max() <= 1e-12 * max(1.0, np.abs(p).max())
+    # the kernels the runtime calls over batches (kinegen.runtime.system) fall back with them
+    assert other.native.sensitivity_case() is None
+    values = other.sensitivity_kernels["dvel"](results.q.T, results.v.T, results.inputs.T, np.zeros_like(results.inputs.T))
+    expected = module.CASES[other.case]["outputs"]["dvel"](results.q.T, results.v.T, results.inputs.T, np.zeros_like(results.inputs.T),
+                                                            list(other.design.values()))  # fmt: skip
+    assert np.array_equal(np.broadcast_arrays(*values), np.broadcast_arrays(*expected))
 
 
 def _model_files(stem: str) -> dict[str, str]:

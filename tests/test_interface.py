@@ -397,8 +397,9 @@ def test_every_compiled_kernel_runs_over_a_batch_in_one_call_with_the_python_fun
             continue
         one = native.each(name, **{s: arguments[s][..., 5] for s in kernel.slots if s != "p"})
         assert all(np.array_equal(x, values[:, 5]) for x, values in zip(one, compiled)), name
-    with pytest.raises(ValueError, match="argument q of shape"):
-        native.each("actuation", q=arguments["q"][:-1])
+    for wrong in (arguments["q"][:-1], 1.0):
+        with pytest.raises(ValueError, match="argument q of shape"):
+            native.each("actuation", q=wrong)
     # the compiled system's force-solve kernel is this one
     matrix = system.statics.matrix(arguments["q"])
     assert np.allclose(matrix, _python_columns(module.actuation_matrix(arguments["q"], p), len(matrix), count), rtol=1e-12, atol=1e-9)

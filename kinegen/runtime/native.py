@@ -447,7 +447,7 @@ class NativeCase:
         sizes = self._slot_sizes
         count, rows, strides = None, [], []
         for slot in declared.slots:
-            x = np.asarray(arguments[slot], dtype=float)
+            x = np.atleast_1d(np.asarray(arguments[slot], dtype=float))
             if slot == "t":
                 x = x.reshape(1, -1) if x.size > 1 else x.reshape(1)
             if x.shape[0] != sizes[slot] or x.ndim > 2:
