@@ -38,6 +38,8 @@ from kinegen.runtime import NumericSystem, Solver, SolverOptions, kinematics
 GRID = 41
 #: the largest change of an input (m or rad) in one Newton solve when moving from pose to pose
 STEP = 0.05
+#: the relative step of the forward differences the optimum's search takes its limits' slopes by (SciPy's own)
+FD_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
 @dataclass(frozen=True)
@@ -181,10 +183,21 @@ class _Finder:
                 cache[key] = np.array([c[0] for c in caps.values()])
             return cache[key]
 
+        def slopes(x: np.ndarray) -> np.ndarray:
+            """d each / dx by forward differences, the shifted poses in one batch: steps of sqrt(eps)
+            max(1, |x_i|), taken towards the inside of the bounds."""
+            x = np.clip(x, low, high)
+            step = FD_STEP * np.maximum(1.0, np.abs(x)) * np.where(x + FD_STEP * np.maximum(1.0, np.abs(x)) > high, -1.0, 1.0)
+            shifted = x + np.diag(step)
+            caps, _ = self._capacities(item, np.stack([_with(at, dict(zip(index, row))) for row in shifted]))
+            changes = np.array([c for c in caps.values()]) - each(x)[:, None]  # (actuators, variables)
+            return changes / (shifted.diagonal() - x)[None, :]
+
         scale = float(limits.max())
         found = minimize(lambda z: -z[-1], np.r_[start, self._limit(item, _with(at, dict(zip(index, start)))) / scale], method="SLSQP",
                          jac=lambda z: np.r_[np.zeros(len(index)), -1.0],
-                         constraints=[{"type": "ineq", "fun": lambda z: each(z[:-1]) / scale - z[-1]}],
+                         constraints=[{"type": "ineq", "fun": lambda z: each(z[:-1]) / scale - z[-1],
+                                       "jac": lambda z: np.c_[slopes(z[:-1]) / scale, -np.ones(len(each(z[:-1])))]}],
                          bounds=[*zip(low, high), (0, None)], options={"ftol": 1e-12, "maxiter": 200})  # fmt: skip
         best = _with(at, dict(zip(index, np.clip(found.x[:-1], low, high))))
         return best if self._limit(item, best) >= self._limit(item, _with(at, dict(zip(index, start)))) else _with(at, dict(zip(index, start)))
