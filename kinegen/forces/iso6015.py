@@ -38,7 +38,7 @@ from kinegen.runtime import NumericSystem, Solver, SolverOptions, kinematics
 GRID = 41
 #: the largest change of an input (m or rad) in one Newton solve when moving from pose to pose
 STEP = 0.05
-#: the relative step of the forward differences the optimum's search takes its limits' slopes by (SciPy's own)
+#: the step, relative to max(1, |u|), of the forward differences the optimum's search takes its limits' slopes by (√ε)
 FD_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
