@@ -187,8 +187,8 @@ class _Finder:
             """d each / dx by forward differences, the shifted poses in one batch: steps of sqrt(eps)
             max(1, |x_i|), taken towards the inside of the bounds."""
             x = np.clip(x, low, high)
-            step = FD_STEP * np.maximum(1.0, np.abs(x)) * np.where(x + FD_STEP * np.maximum(1.0, np.abs(x)) > high, -1.0, 1.0)
-            shifted = x + np.diag(step)
+            size = FD_STEP * np.maximum(1.0, np.abs(x))
+            shifted = x + np.diag(np.where(x + size > high, -size, size))
             caps, _ = self._capacities(item, np.stack([_with(at, dict(zip(index, row))) for row in shifted]))
             changes = np.array([c for c in caps.values()]) - each(x)[:, None]  # (actuators, variables)
             return changes / (shifted.diagonal() - x)[None, :]

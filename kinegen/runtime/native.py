@@ -502,7 +502,7 @@ class NativeCase:
         None when that cannot be compiled (said once as a warning: the caller computes them in Python)."""
         if "dvel" not in self.kernels:
             complete = self.sensitivity_case()
-            return None if complete is None or complete is self else complete.sensitivities(q, v, a, u, ud, udd)
+            return None if complete is None else complete.sensitivities(q, v, a, u, ud, udd)
         rows = [np.ascontiguousarray(np.asarray(x, dtype=float).T) for x in (q, v, a, u, ud, udd)]
         count = rows[0].shape[0]
         out = tuple(np.empty((count, self.n_v, len(self.design))) for _ in range(3))
