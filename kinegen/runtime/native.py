@@ -28,6 +28,7 @@ import tempfile
 import threading
 import time
 import warnings
+import weakref
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager, suppress
 from functools import cache, cached_property
@@ -363,15 +364,35 @@ def _load(path: Path) -> ctypes.CDLL:
     return ctypes.CDLL(str(path))
 
 
+#: per loaded module object: its C sources (:func:`_model_sources`) and the library a solve loads
+#: (:func:`case_library`), found once -- the C files read and hashed, the library's key computed and its
+#: bytes checked -- not again for every system a study or an exploration makes of each design
+_RESOLVED: weakref.WeakKeyDictionary[ModuleType, tuple[dict[str, str], Path]] = weakref.WeakKeyDictionary()
+
+
+def module_library(module: ModuleType) -> tuple[dict[str, str], Path] | None:
+    """The C sources of a generated module and the library a solve of it loads, compiled if needed
+    (:func:`case_library`); None where no fresh C lies beside it (:func:`_model_sources`). Found once
+    per module object: the library then serves the kernels that module was generated with, whatever
+    is later written beside it (a rebuild is a new module). CompileError without a usable compiler."""
+    found = _RESOLVED.get(module)
+    if found is None:
+        sources = _model_sources(module)
+        if sources is None:
+            return None
+        found = _RESOLVED[module] = (sources, case_library(sources))
+    return found
+
+
 def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.ndarray | None = None) -> NativeCase | None:
     """The compiled kernels and C solver of ``case`` of a generated module, or None (no C beside
     the module, or no usable compiler: said once per reason as a warning unless ``quiet``);
     ``design``: the values of a model's design parameters (default: nominal)."""
-    sources = _model_sources(module)
-    if sources is None:
-        return None
     try:
-        library = case_library(sources)
+        found = module_library(module)
+        if found is None:
+            return None
+        sources, library = found
     except CompileError as exc:
         reason = str(exc)
         if not quiet and reason not in _WARNED:
@@ -383,8 +404,19 @@ def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.n
     abi.check_frames(tuple(tuple(f) for f in module.FRAME_FIELDS))
     native = NativeCase(abi, f"{stem}_{case}", design)
     if deferred_sensitivities(sources):
-        native.complete = lambda: NativeCase(_abi(str(build_library(sources))), f"{stem}_{case}", native.design)
+        native.complete = lambda: NativeCase(_abi(str(_complete_library(module, sources))), f"{stem}_{case}", native.design)
     return native
+
+
+#: per loaded module object: its complete library (with the sensitivity kernels), once built
+_COMPLETE: weakref.WeakKeyDictionary[ModuleType, Path] = weakref.WeakKeyDictionary()
+
+
+def _complete_library(module: ModuleType, sources: dict[str, str]) -> Path:
+    """The library of a module's C with its sensitivity kernels (:func:`build_library`), found once per module object."""
+    if module not in _COMPLETE:
+        _COMPLETE[module] = build_library(sources)
+    return _COMPLETE[module]
 
 
 class NativeCase:

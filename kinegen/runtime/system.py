@@ -523,11 +523,8 @@ def _native(module: ModuleType | Any, case: str, compiled: bool | None, design: 
         return None
     import kinegen.runtime.native as native
 
-    if compiled:
-        sources = native._model_sources(module)
-        if sources is None:
-            raise native.CompileError(f"{getattr(module, '__file__', module)}: no fresh generated C beside the module")
-        native.case_library(sources)  # raises CompileError without a compiler
+    if compiled and native.module_library(module) is None:  # CompileError without a compiler
+        raise native.CompileError(f"{getattr(module, '__file__', module)}: no fresh generated C beside the module")
     return native.native_case(module, case, design=design)
 
 
