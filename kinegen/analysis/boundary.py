@@ -181,7 +181,8 @@ def working_range_boundary(
     notes: list[str] = []
     # inputs that do not move the chart point are held at their lower limit
     centre = 0.5 * (lows + highs)
-    tip = evaluator.move_to(centre)[0]
+    evaluator.move_to(centre)
+    tip = evaluator.points(evaluator.q)[0]
     if np.hypot(tip[0], tip[1]) > 1e-9:
         chart.direction = tip[:2] / np.hypot(tip[0], tip[1])
     _, jac = chart.chart(centre[None], evaluator.q[:, None])

@@ -58,8 +58,9 @@ class RangeEvaluator:
         positions, _, by_input = point_position_sensitivities(self.system, self.q[:, None], self.u[:, None], self.tracked, design=False)
         return positions[0], by_input[0][:, :, self.index]
 
-    def move_to(self, values: np.ndarray) -> np.ndarray:
-        """Solve at the swept ``values`` by continuation from the last solve; the tracked points."""
+    def move_to(self, values: np.ndarray) -> None:
+        """Solve at the swept ``values`` by continuation from the last solve (then ``q``, ``u``;
+        :meth:`points` and :meth:`derivatives` there)."""
         target = self.inputs(values)
         steps = max(1, int(np.ceil(np.max(np.abs(target[self.index] - self.u[self.index]) / self.stage))))
         q = self.q
@@ -68,4 +69,3 @@ class RangeEvaluator:
             q, _, _ = self.solver.position(q, u)
             self.solves += 1
         self.q, self.u = q, target
-        return self.points(q)

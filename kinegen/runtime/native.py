@@ -364,24 +364,38 @@ def _load(path: Path) -> ctypes.CDLL:
     return ctypes.CDLL(str(path))
 
 
-#: per loaded module object: its C sources (:func:`_model_sources`) and the library a solve loads
-#: (:func:`case_library`), found once -- the C files read and hashed, the library's key computed and its
-#: bytes checked -- not again for every system a study or an exploration makes of each design
-_RESOLVED: weakref.WeakKeyDictionary[ModuleType, tuple[dict[str, str], Path]] = weakref.WeakKeyDictionary()
+#: per loaded module object and compiler: its C sources (:func:`_model_sources`) and the library a solve
+#: loads (:func:`case_library`), found once -- the C files read and hashed, the library's key computed and
+#: its bytes checked -- not again for every system a study or an exploration makes of each design
+_RESOLVED: weakref.WeakKeyDictionary[ModuleType, dict[str, tuple[dict[str, str], Path]]] = weakref.WeakKeyDictionary()
+#: the same for the complete library (with the sensitivity kernels), once built
+_COMPLETE: weakref.WeakKeyDictionary[ModuleType, dict[str, Path]] = weakref.WeakKeyDictionary()
 
 
 def module_library(module: ModuleType) -> tuple[dict[str, str], Path] | None:
     """The C sources of a generated module and the library a solve of it loads, compiled if needed
     (:func:`case_library`); None where no fresh C lies beside it (:func:`_model_sources`). Found once
-    per module object: the library then serves the kernels that module was generated with, whatever
-    is later written beside it (a rebuild is a new module). CompileError without a usable compiler."""
-    found = _RESOLVED.get(module)
-    if found is None:
+    per module object and compiler: the library then serves the kernels that module was generated
+    with, whatever is later written beside it (a rebuild is a new module). CompileError without a
+    usable compiler."""
+    found = _RESOLVED.setdefault(module, {})
+    compiler = c_compiler()
+    if compiler not in found:
         sources = _model_sources(module)
         if sources is None:
             return None
-        found = _RESOLVED[module] = (sources, case_library(sources))
-    return found
+        found[compiler] = (sources, case_library(sources))
+    return found[compiler]
+
+
+def _complete_library(module: ModuleType, sources: dict[str, str]) -> Path:
+    """The library of a module's C with its sensitivity kernels (:func:`build_library`), found once per
+    module object and compiler."""
+    found = _COMPLETE.setdefault(module, {})
+    compiler = c_compiler()
+    if compiler not in found:
+        found[compiler] = build_library(sources)
+    return found[compiler]
 
 
 def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.ndarray | None = None) -> NativeCase | None:
@@ -406,17 +420,6 @@ def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.n
     if deferred_sensitivities(sources):
         native.complete = lambda: NativeCase(_abi(str(_complete_library(module, sources))), f"{stem}_{case}", native.design)
     return native
-
-
-#: per loaded module object: its complete library (with the sensitivity kernels), once built
-_COMPLETE: weakref.WeakKeyDictionary[ModuleType, Path] = weakref.WeakKeyDictionary()
-
-
-def _complete_library(module: ModuleType, sources: dict[str, str]) -> Path:
-    """The library of a module's C with its sensitivity kernels (:func:`build_library`), found once per module object."""
-    if module not in _COMPLETE:
-        _COMPLETE[module] = build_library(sources)
-    return _COMPLETE[module]
 
 
 class NativeCase:
