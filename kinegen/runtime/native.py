@@ -34,6 +34,7 @@ from contextlib import ExitStack, contextmanager, suppress
 from functools import cache, cached_property
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -378,23 +379,29 @@ def module_library(module: ModuleType) -> tuple[dict[str, str], Path] | None:
     per module object and compiler: the library then serves the kernels that module was generated
     with, whatever is later written beside it (a rebuild is a new module). CompileError without a
     usable compiler."""
-    found = _RESOLVED.setdefault(module, {})
-    compiler = c_compiler()
-    if compiler not in found:
+
+    def find() -> tuple[dict[str, str], Path] | None:
         sources = _model_sources(module)
-        if sources is None:
-            return None
-        found[compiler] = (sources, case_library(sources))
-    return found[compiler]
+        return None if sources is None else (sources, case_library(sources))
+
+    return _once_per_compiler(_RESOLVED, module, find)
 
 
 def _complete_library(module: ModuleType, sources: dict[str, str]) -> Path:
     """The library of a module's C with its sensitivity kernels (:func:`build_library`), found once per
     module object and compiler."""
-    found = _COMPLETE.setdefault(module, {})
+    return _once_per_compiler(_COMPLETE, module, lambda: build_library(sources))
+
+
+def _once_per_compiler(table: weakref.WeakKeyDictionary, module: ModuleType, find: Callable[[], Any]) -> Any:
+    """``find()`` for ``module`` and the compiler in use (:func:`c_compiler`), kept in ``table``; None is not kept."""
+    found = table.setdefault(module, {})
     compiler = c_compiler()
     if compiler not in found:
-        found[compiler] = build_library(sources)
+        made = find()
+        if made is None:
+            return None
+        found[compiler] = made
     return found[compiler]
 
 
