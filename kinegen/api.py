@@ -72,7 +72,7 @@ class Session:
 
     def module_path(self, model_file: str | Path, parametrization: str = rotations.REFERENCE) -> Path:
         """Where the generated module of ``model_file`` in ``parametrization`` lives."""
-        from kinegen.codegen import module_name
+        from kinegen.naming import module_name
 
         return Path(self.generated_dir) / f"{module_name(self.model(model_file), rotations.get(parametrization))}.py"
 

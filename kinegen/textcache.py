@@ -16,9 +16,12 @@ import warnings
 from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
+from typing import TypeVar
 
 import kinegen
 from kinegen.files import cache_folder, write_atomic
+
+T = TypeVar("T")
 
 
 @functools.cache
@@ -54,13 +57,20 @@ def cached_text(kind: str, source: bytes, question: str, compute: Callable[[], s
             return text
     except (OSError, ValueError, KeyError, TypeError):
         pass
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        text = compute()
-    for warning in caught:
-        warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+    text, caught = given_and_recorded(compute)
     try:
         write_atomic(path, json.dumps({"text": text, "warnings": [str(w.message) for w in caught]}))
     except OSError:
         pass
     return text
+
+
+def given_and_recorded(compute: Callable[[], T]) -> tuple[T, list[warnings.WarningMessage]]:
+    """``compute()``'s value and the warnings it raised, each recorded (to be given again when a
+    kept value is used) and given as it would have been (through ``warnings``, every one)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        value = compute()
+    for warning in caught:
+        warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+    return value, caught

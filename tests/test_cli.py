@@ -181,3 +181,26 @@ def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path
         assert png.stat().st_size > 20_000
     result = run("solve", str(MODELS / "boom.yaml"), "--plot", str(tmp_path / "x.png"), "--frame", "nothing")
     assert result.exit_code == ExitCode.USAGE and "no body 'nothing'" in result.output
+
+
+def test_a_solve_of_a_fresh_module_imports_neither_the_generator_nor_scipys_linear_algebra():
+    """`kinegen solve` of a model whose module is fresh, solved in C: the code generator (SymPy's
+    printers), SciPy's linear algebra and sparse graphs stay unimported (~0.7 s of a command's
+    start-up); the model comes from kinegen's cache when read before (kinegen.model.kept)."""
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+
+    script = (
+        "import sys; from kinegen.cli import main\n"
+        "try:\n    main(['solve', 'models/excavator.yaml', '--case', 'bucket_near_toggle'], standalone_mode=False)\n"
+        "finally:\n    print('IMPORTED', *sorted(m for m in sys.modules if m.startswith(('kinegen.codegen.', 'scipy.'))))\n"
+    )
+    for _ in range(2):  # the second run reads the model kept by the first
+        done = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert "9 of 9 time points" in done.stdout, done.stdout
+        imported = done.stdout.split("IMPORTED")[-1].split()
+        assert not [m for m in imported if m.startswith(("scipy.linalg", "scipy.sparse", "kinegen.codegen.kernels", "kinegen.codegen.writer"))], imported
+        assert "kinegen.codegen.backends.c.config" in imported  # (the runtime reads the C backend's settings only)

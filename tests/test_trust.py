@@ -588,3 +588,63 @@ def test_concurrent_builds_sharing_the_cache_all_succeed_and_compile_each_object
     objects = list((tmp_path / "shared-cache" / "objects").glob("*.o"))
     compiled = log.read_text().splitlines()
     assert len(objects) >= 2 and len(compiled) == len(objects), compiled  # the solver's and the model's: once each
+
+
+def test_a_model_read_again_is_the_kept_one_and_nothing_kinegen_did_not_keep_is_loaded(tmp_path, monkeypatch):
+    """A model read once is kept (kinegen.model.kept): the same bytes under the same name read
+    again give an equal model without parsing, with the warnings reading gave; a planted pickle
+    (code that runs when loaded) or a truncated one in its place is never loaded: the file is read
+    again and kept anew. Other bytes, or the same bytes under another name, are another model; a
+    model that fails keeps nothing."""
+    import pickle
+    import warnings
+
+    from kinegen.errors import ModelError
+    from kinegen.model import ModelWarning, kept, loader, loads
+    from tests.test_model_validation import BASE
+
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    assert "{quaternion: [1, 0, 0, 0]}" in BASE and "type: revolute" in BASE
+    text = BASE.replace("{quaternion: [1, 0, 0, 0]}", "{quaternion: [2, 0, 0, 0]}")  # normalized, with a ModelWarning
+    reads = []
+    read = loader._read
+    monkeypatch.setattr(loader, "_read", lambda data, file: reads.append(file) or read(data, file))
+
+    def load_said(name: str = "arm.yaml"):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = loads(text, name)
+        return model, [str(w.message) for w in caught if issubclass(w.category, ModelWarning)]
+
+    first, said = load_said()
+    assert reads == ["arm.yaml"] and any("normalized" in message for message in said)
+    stored = kept._path(text.encode(), "arm.yaml")
+    assert integrity.trusted(stored.read_bytes())
+    again, said_again = load_said()
+    assert reads == ["arm.yaml"] and again == first and again is not first and said_again == said
+    planted = pickle.dumps(ShellCommand(f"touch {tmp_path / 'RAN'}"))
+    for damaged in (planted, stored.read_bytes()[:200]):
+        stored.write_bytes(damaged)
+        reads.clear()
+        model, _ = load_said()
+        assert reads == ["arm.yaml"] and model == first and not (tmp_path / "RAN").exists()
+        assert integrity.trusted(stored.read_bytes())
+    reads.clear()
+    assert load_said("other_name.yaml")[0].file == "other_name.yaml" and reads == ["other_name.yaml"]
+    broken = text.replace("type: revolute", "type: revolving", 1)
+    for _ in range(2):
+        with pytest.raises(ModelError, match="revolving"):
+            loads(broken, "broken.yaml")
+    assert not kept._path(broken.encode(), "broken.yaml").exists()
+
+
+class ShellCommand:
+    """An object whose unpickling runs a shell command (what a planted pickle can do)."""
+
+    def __init__(self, command: str) -> None:
+        self.command = command
+
+    def __reduce__(self):
+        import os
+
+        return (os.system, (self.command,))

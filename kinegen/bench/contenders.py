@@ -147,13 +147,13 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
     from kinegen import rotations
     from kinegen.codegen import generate, module_name, write_files
     from kinegen.runtime import Solver, SolverOptions, from_module, load_module
-    from kinegen.runtime.native import build_solver_object, compile_in_background
+    from kinegen.runtime.native import compile_in_background
 
     w = workload(name)
     param = rotations.get(parametrization)
-    with tempfile.TemporaryDirectory() as folder, _fresh_cache():  # the model's C compiled afresh, timed as part of the build
-        if compiled:  # kinegen's C solver: compiled once per machine for every model (not timed)
-            build_solver_object()
+    # the model's C compiled afresh, timed as part of the build; kinegen's C solver, compiled once per machine
+    # for every model, is not timed: the cache's own object (compiled there first if it was not)
+    with tempfile.TemporaryDirectory() as folder, _fresh_cache(solver=compiled):
         compiling = []
 
         def ready(target: str, files: dict[str, str]) -> None:  # as `kinegen build`: compile while printing Python
@@ -177,13 +177,23 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
 
 
 @contextmanager
-def _fresh_cache() -> Iterator[None]:
+def _fresh_cache(solver: bool = False) -> Iterator[None]:
     """kinegen's cache set to a new, empty folder for the block, then back to what it was (the
     folder removed): a cache left pointing at the removed folder sent every later compile of the
-    process into a re-created copy of it, outside any cache anyone cleans."""
+    process into a re-created copy of it, outside any cache anyone cleans. ``solver``: the new
+    folder holds the C solver's object of the cache before (compiled there first if it was not;
+    the trust store knows its bytes), as a machine that built any model has it."""
+    import shutil
+
+    from kinegen.runtime.native import build_solver_object
+
     previous = os.environ.get("KINEGEN_CACHE")
+    kept = build_solver_object() if solver else None
     with tempfile.TemporaryDirectory() as cache:
         os.environ["KINEGEN_CACHE"] = cache
+        if kept is not None:
+            (Path(cache) / "objects").mkdir()
+            shutil.copy2(kept, Path(cache) / "objects" / kept.name)
         try:
             yield
         finally:

@@ -14,17 +14,13 @@ from kinegen.errors import ModelError
 from kinegen.files import write_atomic
 from kinegen.integrity import digest, expected, expected_key, locked, remember, remember_expected
 from kinegen.model import Model, load
+from kinegen.naming import module_name
 from kinegen.rotations import Parametrization, get
 from kinegen.textcache import code_fingerprint
 
 #: What ``kinegen build`` writes into generated/: the Python module and the model's C (which
 #: the runtime compiles with kinegen's C solver on first use).
 DEFAULT_TARGETS = ("python", "c-model")
-
-
-def module_name(model: Model, parametrization: Parametrization) -> str:
-    """File stem of the generated module, e.g. ``boom_quaternion``."""
-    return f"{model.name}_{parametrization.file_tag}"
 
 
 def generate(

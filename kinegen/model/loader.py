@@ -210,8 +210,17 @@ def source_digest(path: str | Path) -> str:
 
 
 def loads(raw: bytes | str, file: str = "<string>") -> Model:
-    """Validate a model given as YAML text; ``file`` names it in error messages."""
+    """Validate a model given as YAML text; ``file`` names it in error messages. The same bytes
+    read under the same name before (by this kinegen) give the model kept then
+    (:mod:`kinegen.model.kept`)."""
+    from kinegen.model.kept import kept_model
+
     data = raw.encode() if isinstance(raw, str) else raw
+    return kept_model(data, file, lambda: _read(data, file))
+
+
+def _read(data: bytes, file: str) -> Model:
+    """The model of the YAML bytes ``data`` (``file`` names it in error messages), read and validated."""
     loader = None
     try:
         _check_size(data, file)

@@ -12,16 +12,19 @@ Both take the Jacobian as its *values* at the pattern (``rows``, ``cols``), as g
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
-import scipy.linalg
-import scipy.sparse
-from scipy.sparse.csgraph import maximum_bipartite_matching, reverse_cuthill_mckee
 
-_getrf, _getrs, _gecon, _gbtrf, _gbtrs, _gbcon = scipy.linalg.get_lapack_funcs(
-    ("getrf", "getrs", "gecon", "gbtrf", "gbtrs", "gbcon"), dtype=np.float64
-)
+
+@functools.cache
+def _lapack() -> tuple:
+    """LAPACK's getrf, getrs, gecon, gbtrf, gbtrs, gbcon for doubles, through SciPy (imported when
+    first needed: a solve in C never needs them, and SciPy's linear algebra is ~0.3 s to import)."""
+    import scipy.linalg
+
+    return tuple(scipy.linalg.get_lapack_funcs(("getrf", "getrs", "gecon", "gbtrf", "gbtrs", "gbcon"), dtype=np.float64))
 
 
 def condition_number(matrix: np.ndarray) -> float:
@@ -55,18 +58,18 @@ class DenseLU(Pattern):
 
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
         """(factors, |diagonal of U|)."""
-        lu, piv, info = _getrf(self.dense(values), overwrite_a=True)
+        lu, piv, info = _lapack()[0](self.dense(values), overwrite_a=True)
         return (lu, piv), abs(lu.diagonal()) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         """Phi_q^-1 rhs; rhs (n,) or (n, k) (many columns: in Fortran order, as LAPACK takes them --
         a C-ordered (84, 4) right-hand side took 3.3 ms through f2py instead of 17 us)."""
-        x, _ = _getrs(factors[0], factors[1], np.asfortranarray(rhs) if np.ndim(rhs) == 2 else rhs)
+        x, _ = _lapack()[1](factors[0], factors[1], np.asfortranarray(rhs) if np.ndim(rhs) == 2 else rhs)
         return x
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors."""
-        rcond, _ = _gecon(factors[0], _one_norm(self.dense(values)), norm="1")
+        rcond, _ = _lapack()[2](factors[0], _one_norm(self.dense(values)), norm="1")
         return float(rcond)
 
     def bound(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
@@ -98,20 +101,20 @@ class BandLU(Pattern):
         """(factors, |diagonal of U|)."""
         band = np.zeros((self._ldab, self.shape[1]), order="F")
         band.ravel(order="F")[self.band_index] = values
-        lu, piv, info = _gbtrf(band, self.kl, self.ku, overwrite_ab=True)
+        lu, piv, info = _lapack()[3](band, self.kl, self.ku, overwrite_ab=True)
         return (lu, piv), abs(lu[self.kl + self.ku]) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         """As DenseLU.solve, on the band (many columns in Fortran order)."""
         permuted = rhs[self.row_order]
-        x, _ = _gbtrs(factors[0], self.kl, self.ku, np.asfortranarray(permuted) if permuted.ndim == 2 else permuted, factors[1])
+        x, _ = _lapack()[4](factors[0], self.kl, self.ku, np.asfortranarray(permuted) if permuted.ndim == 2 else permuted, factors[1])
         out = np.empty_like(x)
         out[self.col_order] = x
         return out
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors (permutations keep the 1-norm)."""
-        rcond, _ = _gbcon(self.kl, self.ku, factors[0], factors[1], _one_norm(self.dense(values)), norm="1")
+        rcond, _ = _lapack()[5](self.kl, self.ku, factors[0], factors[1], _one_norm(self.dense(values)), norm="1")
         return float(rcond)
 
     def bound(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
@@ -137,6 +140,9 @@ def comparison(lu: np.ndarray, diagonal: int) -> np.ndarray:
 
 def band_orders(rows: np.ndarray, cols: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Row and column orders giving a narrow band, or None (no perfect matching: structurally singular)."""
+    import scipy.sparse
+    from scipy.sparse.csgraph import maximum_bipartite_matching, reverse_cuthill_mckee
+
     pattern = scipy.sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
     match = maximum_bipartite_matching(pattern, perm_type="column")  # match[i] = column of row i
     if np.any(match < 0):

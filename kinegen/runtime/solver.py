@@ -166,14 +166,27 @@ class Solver:
             raise ValueError(f"{system.model}/{system.case}: {m} constraints for {n} velocity coordinates")
         #: more equations than coordinates: a model with redundant constraints, solved by least squares
         self.redundant = m > n
-        #: factorization of Phi_q chosen once for its pattern (dense or band LU)
-        self.linear = linear.choose(system.jac_rows, system.jac_cols, (m, n))
         chord = self.options.chord
         #: chord iterations within a step (see SolverOptions.chord)
         self.chord = chord if chord is not None else (system.native is None and not self.options.predictor)
-        #: the diagonal blocks of Phi_q's block-triangular form (None for a redundant or structurally singular system)
-        self.blocks = None if self.redundant else block_triangular((m, n), system.jac_rows, system.jac_cols)
-        self._block_groups = _block_groups(self.blocks, system.jac_rows, system.jac_cols) if self.blocks else []
+
+    @cached_property
+    def linear(self) -> linear.DenseLU | linear.BandLU:
+        """The factorization of Phi_q chosen once for its pattern (dense or band LU); made when first
+        needed (a solve in C never needs it)."""
+        system = self.system
+        return linear.choose(system.jac_rows, system.jac_cols, (len(system.constraint_names), system.n_velocity))
+
+    @cached_property
+    def blocks(self) -> list[Block] | None:
+        """The diagonal blocks of Phi_q's block-triangular form (None for a redundant or structurally
+        singular system), found when first needed."""
+        system = self.system
+        return None if self.redundant else block_triangular((len(system.constraint_names), system.n_velocity), system.jac_rows, system.jac_cols)
+
+    @cached_property
+    def _block_groups(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+        return _block_groups(self.blocks, self.system.jac_rows, self.system.jac_cols) if self.blocks else []
 
     # ---- building blocks ---------------------------------------------------------------
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:

@@ -11,8 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 
 
 @dataclass(frozen=True)
@@ -33,6 +31,9 @@ def block_triangular(shape: tuple[int, int], rows: np.ndarray, cols: np.ndarray)
     ``rows``/``cols`` give the sparsity pattern. Returns None when the matrix is not
     square or is structurally singular (no perfect matching).
     """
+    from scipy.sparse import csr_matrix  # (SciPy's sparse graphs: imported when first needed)
+    from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
+
     m, n = shape
     if m != n or m == 0:
         return None

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from importlib import import_module
+from typing import TYPE_CHECKING
 
-from kinegen.codegen.kernels import ModuleDescription
+if TYPE_CHECKING:
+    from kinegen.codegen.kernels import ModuleDescription
 
 #: target name -> module of its backend
 TARGETS = {"python": "kinegen.codegen.backends.python", "c": "kinegen.codegen.backends.c"}
