@@ -96,10 +96,12 @@ def test_the_installed_package_finds_its_models_and_solves_outside_a_clone(wheel
     assert int(placed[0]) == len(shipped) and Path(placed[1]).name == "excavator_quaternion.py"
     assert (work / "out" / "shipped" / "excavator_quaternion.py").read_bytes() == (ROOT / "generated" / "excavator_quaternion.py").read_bytes()
     # nothing built or verified by building it again: either would have recorded the module's digest (or what a
-    # build writes) in the trust store; the store holds only the digest of the module's compiled code, kept in the cache
+    # build writes) in the trust store; the store holds only the digests of what the cache keeps: the module's
+    # compiled code and the model as read (kinegen.model.kept)
     recorded = {p.name for p in (tmp_path / "trust").rglob("*") if p.is_file() and not p.name.startswith(".")}
-    kept = {hashlib.sha256(p.read_bytes()).hexdigest() for p in (tmp_path / "cache" / "bytecode").rglob("*.marshal")}
-    assert recorded == kept and len(kept) == 1
+    code = {hashlib.sha256(p.read_bytes()).hexdigest() for p in (tmp_path / "cache" / "bytecode").rglob("*.marshal")}
+    models = {hashlib.sha256(p.read_bytes()).hexdigest() for p in (tmp_path / "cache" / "models").rglob("*.pickle")}
+    assert recorded == code | models and len(code) == 1 and len(models) == 1
 
 
 def test_the_main_job_finds_the_models_of_the_clone_or_says_where_they_must_be(tmp_path, monkeypatch, capsys):
