@@ -178,7 +178,14 @@ def _parametrization(name: str) -> rotations.Parametrization:
     help="Derive and print the files even when the same build (model bytes, parametrization, options, this kinegen) "
     "was kept in kinegen's cache (docs/generated-modules.md); the bytes are the same either way.",
 )
-def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None, no_sensitivities: bool, derive: bool) -> None:
+@click.option(
+    "--no-compile",
+    is_flag=True,
+    help="Write the files without compiling the runtime's library of the model's C meanwhile (by default the build "
+    "waits for it, cached in ~/.cache/kinegen); a compiled solve then compiles it when first needed.",
+)
+def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None, no_sensitivities: bool, derive: bool,
+          no_compile: bool) -> None:  # fmt: skip
     """Build MODEL_FILE into generated/<model>_<param>.py (and .c/.h), or a standalone C directory.
 
     Before anything is written, every case's time functions are checked on its time grid
@@ -187,7 +194,8 @@ def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | 
     from kinegen.service.build import build as run
 
     for name in params:
-        report = run(model_file, _parametrization(name).name, target, out_dir, sensitivities=not no_sensitivities, reuse=not derive)
+        report = run(model_file, _parametrization(name).name, target, out_dir, sensitivities=not no_sensitivities, reuse=not derive,
+                     compile_library=not no_compile)  # fmt: skip
         click.echo(f"wrote {report.path} ({report.parametrization}, {report.seconds:.2f} s)")
         for line in report.checks:
             click.echo("  " + line)

@@ -30,6 +30,26 @@ def test_build_writes_the_module_and_checks_the_initial_pose(tmp_path):
     assert "initial pose satisfies Phi" in result.output
 
 
+def test_a_build_without_compiling_writes_the_same_files_and_the_first_compiled_solve_compiles_them(tmp_path, monkeypatch):
+    """`kinegen build --no-compile`: the same files as a build that compiles, nothing compiled into the
+    cache (not even kinegen's C solver); the first compiled solve compiles the library, and it solves
+    as the Python functions do (to 1e-9 m)."""
+    from kinegen.runtime import Solver, from_module, load_module
+
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    result = run("build", BOOM, "--no-compile", "--generated-dir", str(tmp_path / "a"))
+    assert result.exit_code == 0, result.output
+    assert not list((tmp_path / "cache").rglob("*.o")) and not list((tmp_path / "cache").rglob("*.so"))
+    assert run("build", BOOM, "--generated-dir", str(tmp_path / "b")).exit_code == 0
+    assert list((tmp_path / "cache").rglob("*.so"))
+    assert {p.name: p.read_bytes() for p in (tmp_path / "a").iterdir()} == {p.name: p.read_bytes() for p in (tmp_path / "b").iterdir()}
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache2"))
+    module = load_module(tmp_path / "a" / "boom_quaternion.py", BOOM)
+    compiled, python = (Solver(from_module(module, compiled=flag)).solve() for flag in (True, False))
+    assert list((tmp_path / "cache2").rglob("*.so")) and compiled.system.native is not None
+    assert np.abs(compiled.q - python.q).max() < 1e-9
+
+
 def test_solve_writes_csv_with_poses_rates_and_points(tmp_path):
     out = tmp_path / "boom.csv"
     result = run(

@@ -27,10 +27,11 @@ class BuildReport:
 
 
 def build(model_file: str | Path, parametrization: str, target: str = "python", out_dir: str | Path | None = None,
-          sensitivities: bool = True, reuse: bool = True) -> BuildReport:  # fmt: skip
+          sensitivities: bool = True, reuse: bool = True, compile_library: bool = True) -> BuildReport:  # fmt: skip
     """Build ``model_file`` in ``parametrization`` (a canonical name): ``target`` "python" into
-    ``out_dir`` (default generated/), waiting for the runtime's library of its C; "c" a standalone C
-    directory (default ``<model>_<param>_c``). ``sensitivities``: as ``kinegen build --no-sensitivities`` says.
+    ``out_dir`` (default generated/), waiting for the runtime's library of its C (``compile_library`` False:
+    not compiled now; a compiled solve compiles it when first needed); "c" a standalone C directory
+    (default ``<model>_<param>_c``). ``sensitivities``: as ``kinegen build --no-sensitivities`` says.
     ``reuse``: the same build asked for again is taken from kinegen's cache (:mod:`kinegen.codegen.kept`)."""
     from kinegen.codegen import build as build_module
     from kinegen.codegen import module_name
@@ -44,7 +45,7 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
     def check(source: str, model: str) -> None:
         checks.extend(check_source(source, model))
 
-    if target != "c":  # kinegen's C solver does not depend on the model: compiled (once, cached) while the model is derived
+    if target != "c" and compile_library:  # kinegen's C solver does not depend on the model: compiled (once, cached) while the model is derived
         from kinegen.runtime.native import compile_solver_in_background
 
         compile_solver_in_background()
@@ -57,7 +58,7 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
     compiling: list = []  # the model's C compiles for the runtime (cached) while the Python is printed and checked
 
     def ready(made: str, files: dict[str, str]) -> None:
-        if made == "c-model":
+        if made == "c-model" and compile_library:
             from kinegen.runtime.native import compile_in_background
 
             compiling.append(compile_in_background(files))
