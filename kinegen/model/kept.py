@@ -30,7 +30,9 @@ from kinegen.textcache import code_fingerprint, given_and_recorded
 
 
 def _path(data: bytes, file: str) -> Path:
-    key = hashlib.sha256(b"\0".join([b"model", data, file.encode("utf-8", "surrogatepass"), code_fingerprint().encode()])).hexdigest()
+    # (the bytes' digest and the fingerprint have fixed lengths: no other bytes and name give the same key text)
+    parts = [b"model", hashlib.sha256(data).digest(), code_fingerprint().encode(), file.encode("utf-8", "surrogatepass")]
+    key = hashlib.sha256(b"\0".join(parts)).hexdigest()
     return cache_folder() / "models" / key[:2] / f"{key}.pickle"
 
 
