@@ -185,7 +185,8 @@ class Solver:
         return None if self.redundant else block_triangular((len(system.constraint_names), system.n_velocity), system.jac_rows, system.jac_cols)
 
     @cached_property
-    def _block_groups(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+    def _blocks_by_size(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+        """The blocks grouped by size for their determinants (:func:`_block_groups`)."""
         return _block_groups(self.blocks, self.system.jac_rows, self.system.jac_cols) if self.blocks else []
 
     # ---- building blocks ---------------------------------------------------------------
@@ -818,12 +819,12 @@ class Solver:
 
     def _block_signs(self, factors: Factors) -> np.ndarray | None:
         """Sign of det of every diagonal block of Phi_q (its rows and columns in the blocks' fixed order)."""
-        if not self._block_groups:
+        if not self._blocks_by_size:
             return None
         if factors.block_signs is None:
             values = factors.values
             signs = np.empty(len(self.blocks))
-            for members, value_index, flat, size in self._block_groups:
+            for members, value_index, flat, size in self._blocks_by_size:
                 stack = np.zeros((len(members), size, size))
                 stack.flat[flat] = values[value_index]
                 signs[members] = np.sign(stack[:, 0, 0]) if size == 1 else np.linalg.slogdet(stack)[0]
