@@ -7,8 +7,9 @@ The names below are imported when first read: the runtime reads the C backend's 
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from kinegen.lazy import exported
 
 if TYPE_CHECKING:
     from kinegen.codegen.kernels import describe, initial_q
@@ -22,19 +23,12 @@ if TYPE_CHECKING:
         write_files,
     )
 
-#: public name -> the module that defines it
-_EXPORTS = {
+__getattr__ = exported(__name__, {
     "describe": "kinegen.codegen.kernels", "initial_q": "kinegen.codegen.kernels",
     "build": "kinegen.codegen.writer", "built_with_sensitivities": "kinegen.codegen.writer", "generate": "kinegen.codegen.writer",
     "generate_source": "kinegen.codegen.writer", "module_name": "kinegen.codegen.writer", "write_atomic": "kinegen.codegen.writer",
     "write_files": "kinegen.codegen.writer",
-}  # fmt: skip
-
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        return getattr(import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+})  # fmt: skip
 
 
 __all__ = ["build", "built_with_sensitivities", "describe", "generate", "generate_source", "initial_q", "module_name", "write_atomic", "write_files"]

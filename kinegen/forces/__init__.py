@@ -5,17 +5,14 @@ kinematics only, not the statics' linear algebra."""
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from kinegen.lazy import exported
 
 if TYPE_CHECKING:
     from kinegen.forces.statics import Forces, forces
 
-
-def __getattr__(name: str) -> Any:
-    if name in ("Forces", "forces"):
-        return getattr(import_module("kinegen.forces.statics"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = exported(__name__, {"Forces": "kinegen.forces.statics", "forces": "kinegen.forces.statics"})
 
 
 __all__ = ["Forces", "forces"]

@@ -4,17 +4,14 @@ target, the runtime ``kinegen_solver.h/.c``, a Makefile, a CMakeLists.txt and ex
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from kinegen.lazy import exported
 
 if TYPE_CHECKING:
     from kinegen.codegen.backends.c.backend import jobs, render
 
-
-def __getattr__(name: str) -> Any:
-    if name in ("jobs", "render"):
-        return getattr(import_module("kinegen.codegen.backends.c.backend"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = exported(__name__, {"jobs": "kinegen.codegen.backends.c.backend", "render": "kinegen.codegen.backends.c.backend"})
 
 
 __all__ = ["jobs", "render"]
