@@ -19,12 +19,13 @@ import numpy as np
 
 
 @functools.cache
-def _lapack() -> tuple:
-    """LAPACK's getrf, getrs, gecon, gbtrf, gbtrs, gbcon for doubles, through SciPy (imported when
-    first needed: a solve in C never needs them, and SciPy's linear algebra is ~0.3 s to import)."""
+def _lapack() -> dict[str, Any]:
+    """LAPACK's getrf, getrs, gecon, gbtrf, gbtrs, gbcon for doubles by name, through SciPy (imported
+    when first needed: a solve in C never needs them, and SciPy's linear algebra is ~0.3 s to import)."""
     import scipy.linalg
 
-    return tuple(scipy.linalg.get_lapack_funcs(("getrf", "getrs", "gecon", "gbtrf", "gbtrs", "gbcon"), dtype=np.float64))
+    names = ("getrf", "getrs", "gecon", "gbtrf", "gbtrs", "gbcon")
+    return dict(zip(names, scipy.linalg.get_lapack_funcs(names, dtype=np.float64)))
 
 
 def condition_number(matrix: np.ndarray) -> float:
@@ -58,18 +59,18 @@ class DenseLU(Pattern):
 
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
         """(factors, |diagonal of U|)."""
-        lu, piv, info = _lapack()[0](self.dense(values), overwrite_a=True)
+        lu, piv, info = _lapack()["getrf"](self.dense(values), overwrite_a=True)
         return (lu, piv), abs(lu.diagonal()) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         """Phi_q^-1 rhs; rhs (n,) or (n, k) (many columns: in Fortran order, as LAPACK takes them --
         a C-ordered (84, 4) right-hand side took 3.3 ms through f2py instead of 17 us)."""
-        x, _ = _lapack()[1](factors[0], factors[1], np.asfortranarray(rhs) if np.ndim(rhs) == 2 else rhs)
+        x, _ = _lapack()["getrs"](factors[0], factors[1], np.asfortranarray(rhs) if np.ndim(rhs) == 2 else rhs)
         return x
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors."""
-        rcond, _ = _lapack()[2](factors[0], _one_norm(self.dense(values)), norm="1")
+        rcond, _ = _lapack()["gecon"](factors[0], _one_norm(self.dense(values)), norm="1")
         return float(rcond)
 
     def bound(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
@@ -101,20 +102,20 @@ class BandLU(Pattern):
         """(factors, |diagonal of U|)."""
         band = np.zeros((self._ldab, self.shape[1]), order="F")
         band.ravel(order="F")[self.band_index] = values
-        lu, piv, info = _lapack()[3](band, self.kl, self.ku, overwrite_ab=True)
+        lu, piv, info = _lapack()["gbtrf"](band, self.kl, self.ku, overwrite_ab=True)
         return (lu, piv), abs(lu[self.kl + self.ku]) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         """As DenseLU.solve, on the band (many columns in Fortran order)."""
         permuted = rhs[self.row_order]
-        x, _ = _lapack()[4](factors[0], self.kl, self.ku, np.asfortranarray(permuted) if permuted.ndim == 2 else permuted, factors[1])
+        x, _ = _lapack()["gbtrs"](factors[0], self.kl, self.ku, np.asfortranarray(permuted) if permuted.ndim == 2 else permuted, factors[1])
         out = np.empty_like(x)
         out[self.col_order] = x
         return out
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors (permutations keep the 1-norm)."""
-        rcond, _ = _lapack()[5](self.kl, self.ku, factors[0], factors[1], _one_norm(self.dense(values)), norm="1")
+        rcond, _ = _lapack()["gbcon"](self.kl, self.ku, factors[0], factors[1], _one_norm(self.dense(values)), norm="1")
         return float(rcond)
 
     def bound(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
