@@ -74,6 +74,28 @@ def trusted(data: bytes) -> bool:
     return False
 
 
+def trusted_file(path: Path) -> bytes | None:
+    """The bytes of a file kinegen keeps in its cache (compiled code, a model read before) when the
+    store knows them: None for a missing or unreadable file and for bytes kinegen did not write."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    return data if trusted(data) else None
+
+
+def keep_file(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` in kinegen's cache, atomically, and record it as kinegen's own
+    (:func:`trusted_file` then gives it back); a cache that cannot be written is passed by."""
+    from kinegen.files import write_atomic
+
+    try:
+        write_atomic(path, data)
+        remember(data)
+    except OSError:
+        pass
+
+
 def shipped_folder() -> Path:
     """Where an installed wheel keeps the generated modules it ships (``kinegen/generated``; a clone
     has none there: its ``generated/`` is the user's, verified like any other)."""

@@ -23,8 +23,8 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from kinegen.files import cache_folder, write_atomic
-from kinegen.integrity import remember, trusted
+from kinegen.files import cache_folder
+from kinegen.integrity import keep_file, trusted_file
 from kinegen.model.schema import Model
 from kinegen.textcache import code_fingerprint, given_and_recorded
 
@@ -41,11 +41,8 @@ def kept_model(data: bytes, file: str, read: Callable[[], Model]) -> Model:
     ``read()`` of the same bytes and name by this kinegen when the trust store knows the kept
     bytes (its warnings given again), else ``read()`` and kept."""
     path = _path(data, file)
-    try:
-        stored = path.read_bytes()
-    except OSError:
-        stored = None
-    if stored is not None and trusted(stored):
+    stored = trusted_file(path)
+    if stored is not None:
         try:
             model, said = pickle.loads(stored)  # bytes kinegen wrote: the trust store knows them
         except Exception:  # a kept file that does not load is read again, whatever it raised
@@ -57,8 +54,7 @@ def kept_model(data: bytes, file: str, read: Callable[[], Model]) -> Model:
     model, caught = given_and_recorded(read)
     try:
         kept = pickle.dumps((model, [(w.category, str(w.message)) for w in caught]), protocol=5)
-        write_atomic(path, kept)
-        remember(kept)
-    except (OSError, pickle.PicklingError, TypeError, AttributeError, RecursionError):
-        pass
+    except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
+        return model
+    keep_file(path, kept)
     return model
