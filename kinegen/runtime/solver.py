@@ -567,8 +567,9 @@ class Solver:
             udd = ((12 * s - 6) * (u0 - u1) + (6 * s - 4) * m0 + (6 * s - 2) * m1) / d**2
             return u, ud, udd
 
-        qs, vs, accs = np.full((k, n), np.nan), np.full((k, nv), np.nan), np.full((k, nv), np.nan)
-        iterations, residuals, conditions = np.zeros(k, dtype=int), np.full(k, np.nan), np.full(k, np.nan)
+        # every row up to the last step tried is written below (that step's, when it fails: NaN)
+        qs, vs, accs = np.empty((k, n)), np.empty((k, nv)), np.empty((k, nv))
+        iterations, residuals, conditions = np.zeros(k, dtype=int), np.empty(k), np.empty(k)
         converged = np.zeros(k, dtype=bool)
         q = system.initial_q.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
         v = a = None
@@ -622,6 +623,7 @@ class Solver:
                     if self.options.on_failure != "stop":
                         raise error from error.cause if isinstance(error, UnassembledError) else None
                     failure = error
+                    qs[i], vs[i], accs[i], conditions[i] = np.nan, np.nan, np.nan, np.nan
                     residuals[i] = getattr(error, "residual", np.nan)
                     k = i + 1
                     break
