@@ -12,6 +12,8 @@ import sys
 import numpy as np
 import pytest
 import sympy as sp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from kinegen import rotations
 from kinegen.codegen import build, built_with_sensitivities, write_atomic, writer
@@ -182,6 +184,58 @@ def test_the_printers_own_methods_give_doprints_text_for_every_statement():
                     code(printer, expr)
                 continue
             assert code(printer, expr) == expected, (type(printer).__name__, expr)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_the_printers_sums_and_products_are_sympys_own_text(data):
+    """kinegen's printers print sums and products with their precedences kept (PrecedenceOnce):
+    on random expressions (negative, rational and float coefficients, negative and fractional
+    powers, functions, nested sums; SymPy-evaluated and SymEngine's canonical form through
+    engine.to_sympy; two unevaluated powers of a product), the text is that of SymPy's own
+    _print_Add, _print_Mul and parenthesize in each printer, and the kept precedence is SymPy's
+    precedence (zoo's products too)."""
+    import symengine as se
+    from sympy.printing.c import C89CodePrinter
+    from sympy.printing.codeprinter import CodePrinter
+    from sympy.printing.precedence import precedence
+    from sympy.printing.str import StrPrinter
+
+    from kinegen.codegen.backends.c.printer import CPrinter
+    from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter
+    from kinegen.codegen.expressions import _precedence
+    from kinegen.codegen.shapes import code
+    from kinegen.symbolic import engine
+
+    symbols = sp.symbols("x y z", real=True)
+    x, y, z = symbols
+    unevaluated = [sp.Mul(z, sp.Pow(x * y, -1, evaluate=False), evaluate=False),  # SymPy parenthesizes 1/(x*y) twice
+                   sp.Mul(-2, sp.Pow(x * y, -1, evaluate=False), sp.Pow(z + 1, -2), evaluate=False)]  # fmt: skip
+    leaves = st.one_of(
+        st.sampled_from(symbols), st.integers(-4, 4).map(sp.Integer), st.sampled_from([sp.Rational(-3, 7), sp.Rational(5, 2), sp.Float(-1.25), sp.Float(0.5)])
+    )  # fmt: skip
+
+    def grow(children):
+        pair = st.tuples(children, children)
+        return st.one_of(
+            pair.map(lambda p: p[0] + p[1]), pair.map(lambda p: p[0] * p[1]), pair.map(lambda p: p[0] - p[1]),
+            st.tuples(children, st.sampled_from([-1, -2, 2, 3, sp.Rational(1, 2), sp.Rational(-1, 2), sp.Rational(-3, 2)])).map(lambda p: p[0] ** p[1]),
+            children.map(sp.sin), children.map(lambda e: sp.sqrt(e**2 + 1)), children.map(lambda e: -e),
+        )  # fmt: skip
+
+    expr = sp.sympify(data.draw(st.recursive(leaves, grow, max_leaves=12)))
+    canonical = engine.to_sympy(se.sympify(expr), {s.name: s for s in symbols}, {})
+    for e in (expr, canonical, sp.zoo * x * y, -sp.zoo * x):
+        for node in sp.preorder_traversal(e):
+            assert _precedence(node) == precedence(node), node
+    for kind, product in ((CPrinter, C89CodePrinter._print_Mul), (ModulePrinter, CodePrinter._print_Mul), (ScalarPrinter, CodePrinter._print_Mul)):
+        sympys = type("Sympys", (kind,), {"_print_Add": StrPrinter._print_Add, "_print_Mul": product, "parenthesize": StrPrinter.parenthesize})
+        for e in (expr, canonical, *unevaluated):
+            if e.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+                continue
+            kept, plain = kind(), sympys()
+            kept.forget()
+            assert code(kept, e) == code(plain, e), (kind.__name__, e)
 
 
 def test_a_failure_printing_in_the_forked_process_is_raised_here_and_nothing_is_written(tmp_path, monkeypatch):

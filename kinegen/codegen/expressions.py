@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import sympy as sp
-from sympy.printing.precedence import precedence
+from sympy.core.function import Function
+from sympy.core.mul import _keep_coeff
+from sympy.printing.precedence import PRECEDENCE, precedence
 
 
 def freeze_numbers(expr: sp.Expr) -> sp.Expr:
@@ -19,12 +21,24 @@ def freeze_numbers(expr: sp.Expr) -> sp.Expr:
 
 
 class PrecedenceOnce:
-    """A printer mixin: SymPy's ``parenthesize`` with each expression's precedence computed once and
-    kept until :meth:`forget` (SymPy's asks for it up to twice per call, a product's each time
-    through ``could_extract_minus_sign``: ~a quarter of printing the excavator's kernels). The same
-    text: the precedence of an expression is a function of the expression. ``doprint`` forgets
-    first, and so does :class:`kinegen.codegen.shapes.Shapes` before each group's statements: a
-    printer kept for the process does not keep every expression it printed alive."""
+    """A printer mixin: SymPy's sums and products printed with each expression's precedence
+    computed once and kept until :meth:`forget`. SymPy's printers ask for it up to three times per
+    node, a product's each time through ``could_extract_minus_sign``, which builds the product's
+    negation to compare it with itself (~a third of printing the excavator's kernels). The same
+    text: the precedence of an expression is a function of the expression, and :meth:`_print_Add`
+    and :meth:`_print_Mul` are SymPy's (``StrPrinter``'s and ``CodePrinter``'s, SymPy pinned
+    exactly) with only their precedences taken from here. ``doprint`` forgets first, and so does
+    :class:`kinegen.codegen.shapes.Shapes` before each group's statements: a printer kept for the
+    process does not keep every expression it printed alive."""
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        for name, owners in (("_print_Add", ("StrPrinter",)), ("_print_Mul", ("CodePrinter", "C89CodePrinter"))):
+            replaced = next(c for c in cls.__mro__[cls.__mro__.index(PrecedenceOnce) + 1 :] if name in c.__dict__)
+            if replaced.__name__ not in owners:  # a printer whose own method this mixin would hide
+                raise TypeError(
+                    f"{cls.__name__}: PrecedenceOnce.{name} stands for {' or '.join(owners)}'s, not {replaced.__name__}'s"
+                )
 
     def forget(self) -> None:
         self.__dict__["_precedences"] = {}
@@ -33,11 +47,85 @@ class PrecedenceOnce:
         self.forget()
         return super().doprint(expr, assign_to)
 
-    def parenthesize(self, item: sp.Basic, level: int, strict: bool = False) -> str:
+    def precedence_of(self, item: sp.Basic) -> int:
+        """SymPy's ``precedence(item)``, kept."""
         known = self.__dict__.setdefault("_precedences", {})
         value = known.get(item)
         if value is None:
-            value = known[item] = precedence(item)
+            value = known[item] = _precedence(item)
+        return value
+
+    def parenthesize(self, item: sp.Basic, level: int, strict: bool = False) -> str:
+        value = self.precedence_of(item)
         if value < level or (not strict and value <= level):
             return f"({self._print(item)})"
         return self._print(item)
+
+    def _print_Add(self, expr: sp.Add, order: str | None = None) -> str:
+        # StrPrinter._print_Add
+        prec = self.precedence_of(expr)
+        parts = []
+        for term in self._as_ordered_terms(expr, order=order):
+            text = self._print(term)
+            if text.startswith("-") and not term.is_Add:
+                sign, text = "-", text[1:]
+            else:
+                sign = "+"
+            parts += [sign, f"({text})" if self.precedence_of(term) < prec or term.is_Add else text]
+        sign = parts.pop(0)
+        return ("" if sign == "+" else sign) + " ".join(parts)
+
+    def _print_Mul(self, expr: sp.Mul, **kwargs: object) -> str:
+        # CodePrinter._print_Mul (C89CodePrinter's first looks for a macro: SymPy's own path then)
+        if expr in getattr(self, "math_macros", {}):
+            return super()._print_Mul(expr, **kwargs)
+        prec = self.precedence_of(expr)
+        c, e = expr.as_coeff_Mul()
+        if c < 0:
+            expr = _keep_coeff(-c, e)
+            sign = "-"
+        else:
+            sign = ""
+        a: list[sp.Basic] = []  # the numerator's factors
+        b: list[sp.Basic] = []  # the denominator's (if any)
+        pow_paren = []  # powers with exponent -1 of a product of more than one factor
+        args = expr.as_ordered_factors() if self.order not in ("old", "none") else sp.Mul.make_args(expr)
+        for item in args:
+            if item.is_commutative and item.is_Pow and item.exp.is_Rational and item.exp.is_negative:
+                if item.exp != -1:
+                    b.append(sp.Pow(item.base, -item.exp, evaluate=False))
+                else:
+                    if len(item.args[0].args) != 1 and isinstance(item.base, sp.Mul):
+                        pow_paren.append(item)
+                    b.append(sp.Pow(item.base, -item.exp))
+            else:
+                a.append(item)
+        a = a or [sp.S.One]
+        if len(a) == 1 and sign == "-":  # unary minus: between Mul and Pow
+            a_str = [self.parenthesize(a[0], 0.5 * (PRECEDENCE["Pow"] + PRECEDENCE["Mul"]))]
+        else:
+            a_str = [self.parenthesize(x, prec) for x in a]
+        b_str = [self.parenthesize(x, prec) for x in b]
+        for item in pow_paren:
+            if item.base in b:
+                b_str[b.index(item.base)] = f"({b_str[b.index(item.base)]})"
+        if not b:
+            return sign + "*".join(a_str)
+        if len(b) == 1:
+            return sign + "*".join(a_str) + "/" + b_str[0]
+        return sign + "*".join(a_str) + "/({})".format("*".join(b_str))
+
+
+def _precedence(item: sp.Basic) -> int:
+    """SymPy's ``precedence(item)``. A product's without building its negation: SymPy's
+    ``Mul.could_extract_minus_sign`` compares the product with its negation only to rule out
+    ``zoo`` (``-zoo*x == zoo*x``), so a product without ``zoo`` that starts with a negative number
+    can have a minus sign extracted, and one that does not start so cannot."""
+    if type(item) is sp.Mul and sp.S.ComplexInfinity not in item.args:
+        if any(
+            hasattr(arg, "precedence") and isinstance(arg, Function) and arg.precedence < PRECEDENCE["Mul"] for arg in item.args
+        ):
+            return PRECEDENCE["Mul"]
+        first = item.args[0]
+        return PRECEDENCE["Add"] if first.is_Number and first.is_extended_negative else PRECEDENCE["Mul"]
+    return precedence(item)
