@@ -81,7 +81,7 @@ class PrecedenceOnce:
             return super()._print_Mul(expr, **kwargs)
         prec = self.precedence_of(expr)
         c, e = expr.as_coeff_Mul()
-        if c < 0:
+        if c is not sp.S.One and (c.p < 0 if c.is_Rational else c < 0):  # c < 0 (most products have none: S.One)
             expr = _keep_coeff(-c, e)
             sign = "-"
         else:
