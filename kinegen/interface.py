@@ -5,7 +5,8 @@ compiled library's own tables) by the runtime -- never copied by hand.
 * :data:`SLOTS`: the arguments a kernel may take, by name.
 * :data:`FRAME_FIELDS`: what the ``frames`` kernel gives per body, in order.
 * :data:`SENSITIVITY_KERNELS`: the kernels of a model with design parameters that carry its
-  exact sensitivities (each a sparse matrix given by its values at a constant pattern).
+  exact sensitivities (each a sparse matrix given by its values at a constant pattern);
+  :data:`SENSITIVITY_ONLY`: those and the other kernels only sensitivities need.
 * :func:`row_owner`: whose a constraint row is, from its name (the modules' constraint names).
 
 Which kernels a module has, their argument slots and their outputs' names and sizes are in the
@@ -67,6 +68,12 @@ SENSITIVITY_KERNELS = {
     "dacc": "[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), "
     "E_a = d(Phi_q a - gamma)/dp (n_p columns)",
 }
+
+#: The kernels only sensitivities need: the per-case :data:`SENSITIVITY_KERNELS`, and the model's
+#: ``frames_d`` (the frames moved along a state's sensitivities) and ``points_p`` (the points'
+#: derivatives by the design parameters). A large model's C holds them apart, compiled when first
+#: asked for (kinegen.runtime.native).
+SENSITIVITY_ONLY = (*SENSITIVITY_KERNELS, "frames_d", "points_p")
 
 
 def normalization_row(body: str, k: int) -> str:

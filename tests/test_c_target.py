@@ -736,11 +736,13 @@ def test_the_solver_object_is_compiled_once_for_every_model(tmp_path, monkeypatc
 def test_the_sensitivity_kernels_compile_when_first_asked_for(tmp_path, monkeypatch):
     """A model's C with parts that only its sensitivity kernels need (config.sensitivity_parts; the
     excavator's, about half its lines): a solve loads a library compiled without them (part 0 with
-    -DKINEGEN_NO_SENSITIVITIES: no phi_p, dvel or dacc in its kernel tables), and the first sensitivities
-    compile the complete one, sharing the other parts' objects; its results equal the Python kernels' to
-    1e-12 of their scale. Compiled on the slider-crank with design parameters, its C split as the
+    -DKINEGEN_NO_SENSITIVITIES: no phi_p, dvel, dacc, frames_d or points_p in its kernel tables, whose
+    lengths are their entries'), and the first sensitivities compile the complete one, sharing the other
+    parts' objects; its results (the state's sensitivities, and the frames' through frames_d) equal the
+    Python kernels' to 1e-12 of their scale. Compiled on the slider-crank with design parameters, its C split as the
     excavator's is (parts of at most 300 statements), in an empty cache: what is compiled is counted."""
     from kinegen.codegen import generate, write_files
+    from kinegen.interface import SENSITIVITY_ONLY
     from kinegen.model import loads
     from kinegen.runtime import sensitivity
     from tests.test_design import design_model
@@ -758,18 +760,21 @@ def test_the_sensitivity_kernels_compile_when_first_asked_for(tmp_path, monkeypa
     objects = tmp_path / "cache" / "objects"
     module = load_module(tmp_path / "slider_crank_quaternion.py")
     system = from_module(module)
-    assert not {"phi_p", "dvel", "dacc"} & set(system.native.kernels)
+    assert not set(SENSITIVITY_ONLY) & set(system.native.kernels)
+    assert {"frames", "points", "actuator_ranges"} <= set(system.native.kernels)
     assert len(list(objects.glob("*.o"))) == 1 + len(parts) - len(deferred)  # the solver, part 0 without them, the others
     times = np.linspace(system.t0, system.t1, 21)
-    compiled = sensitivity.state_sensitivities(Solver(system).solve(times))
-    assert {"phi_p", "dvel", "dacc"} <= set(system.native._complete.kernels)
+    solved = Solver(system).solve(times)
+    compiled = (*sensitivity.state_sensitivities(solved), sensitivity.frame_sensitivities(solved))
+    assert set(SENSITIVITY_ONLY) <= set(system.native._complete.kernels)
     assert len(list(objects.glob("*.o"))) == 2 + len(parts)  # part 0 whole and the deferred parts: the rest shared
-    reference = sensitivity.state_sensitivities(Solver(from_module(module, compiled=False)).solve(times))
-    for c, p in zip(compiled, reference):
+    python_solved = Solver(from_module(module, compiled=False)).solve(times)
+    reference = (*sensitivity.state_sensitivities(python_solved), sensitivity.frame_sensitivities(python_solved))
+    for c, p in zip(compiled, reference, strict=True):
         assert np.abs(c - p).max() <= 1e-12 * max(1.0, np.abs(p).max())
     # a case whose complete library cannot be compiled (here: the compiler is gone) computes them in Python, saying so
     other = from_module(module)
-    assert not {"phi_p", "dvel", "dacc"} & set(other.native.kernels)
+    assert not set(SENSITIVITY_ONLY) & set(other.native.kernels)
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     results = Solver(other).solve(np.linspace(other.t0, other.t1, 11))
     with pytest.warns(RuntimeWarning, match="no compiled sensitivity kernels"):

@@ -10,7 +10,8 @@ A large model's ``<stem>.c`` is still one file that compiles whole, but its sect
 are grouped under ``#if !defined(KINEGEN_PART) || KINEGEN_PART == k`` (k = 1, 2, ...; the
 tables and kernels under k = 0), so that the runtime compiles the parts in parallel
 (:func:`config.source_parts`); the grouped functions then have external linkage and the stem as prefix.
-The sections only the sensitivity kernels (phi_p, dvel, dacc) call come in groups of their own,
+The sections only the sensitivity kernels (phi_p, dvel, dacc, frames_d, points_p:
+:data:`kinegen.interface.SENSITIVITY_ONLY`) call come in groups of their own,
 last, which ``-DKINEGEN_NO_SENSITIVITIES`` leaves out with those kernels and their table entries
 (:func:`config.sensitivity_parts`): the runtime's first library compiles without them, and the
 sensitivities' library when they are first asked for.
@@ -33,7 +34,7 @@ from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Plan, 
 from kinegen.codegen.shapes import Block, Group, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
-from kinegen.interface import SENSITIVITY_KERNELS
+from kinegen.interface import SENSITIVITY_ONLY
 from kinegen.model.expressions import T
 from kinegen.symbolic import engine
 
@@ -313,7 +314,7 @@ class _Model:
         for function, kernel in kernels:
             arguments = ", ".join([*(f"x[{k}][0]" if s == "t" else f"x[{k}]" for k, s in enumerate(kernel.slots)),
                                    *(f"y[{k}]" for k in range(len(kernel.outputs)))])  # fmt: skip
-            sensitivity = kernel.name in SENSITIVITY_KERNELS
+            sensitivity = kernel.name in SENSITIVITY_ONLY
             self.functions.append(_Function(f"call_{function}", ["const double *const *x", "double *const *y"],
                                             statements=[f"{function}({arguments});"], doc=f"{kernel.name} as a kinegen_kernel entry point.",
                                             sensitivity=sensitivity))  # fmt: skip
@@ -357,7 +358,7 @@ class _Model:
             if called.startswith("compute_"):
                 self.callers.setdefault(called, set()).add(kernel.name)
         statements = [f"(void){s};" for s in kernel.slots if s not in used] + statements
-        self.functions.append(_Function(name, params, [], statements, kernel.doc, static, kernel.name in SENSITIVITY_KERNELS))
+        self.functions.append(_Function(name, params, [], statements, kernel.doc, static, kernel.name in SENSITIVITY_ONLY))
 
     def source_groups(self) -> list[list[_Function]]:
         """The section functions in groups of about :data:`config.FILE_STATEMENTS` statements
@@ -367,7 +368,7 @@ class _Model:
         and the kernels' calls renamed."""
         for f in self.section_functions:
             callers = self.callers.get(f.name, set())
-            f.sensitivity = bool(callers) and callers <= set(SENSITIVITY_KERNELS)
+            f.sensitivity = bool(callers) and callers <= set(SENSITIVITY_ONLY)
         groups: list[list[_Function]] = [[]]
         size = 0
         for f in sorted(self.section_functions, key=lambda f: f.sensitivity):  # (stable: the order within each kind)
