@@ -142,13 +142,20 @@ class _Printed:
     temporaries: list[tuple[str, ...]]  # text per style, temporaries named _t0, _t1, ...
     outputs: list[tuple[str, ...] | None]  # per expression; None for an exact zero
     used: frozenset[sp.Symbol]  # placeholder symbols the texts use
-    pattern: re.Pattern | None  # every placeholder or temporary name in the texts
+    pattern: re.Pattern | None  # every placeholder or temporary name in the texts (and possibly other identifiers)
+
+
+#: Every identifier in a printed text (a maximal run of word characters not starting with a digit):
+#: renaming a group's text replaces those that are its placeholders or temporaries, the same
+#: matches as a pattern of exactly those names between word boundaries.
+_IDENTIFIER = re.compile(r"\b[^\W\d]\w*\b")
 
 
 @dataclass(frozen=True)
 class _Naming:
     """What renaming a group's printed text needs: the placeholder symbols its statements use and
-    a pattern matching every placeholder or temporary name in the texts."""
+    a pattern matching every placeholder or temporary name in the texts (and possibly other
+    identifiers, which renaming leaves as they are)."""
 
     used: frozenset[sp.Symbol]
     pattern: re.Pattern | None
@@ -209,8 +216,13 @@ class Shapes:
         if identity not in self._naming:
             used = statements.used
             names = {_text(t) for t, _ in statements.temporaries}
-            words = sorted({_text(s) for s in used} | names, key=len, reverse=True)
-            pattern = re.compile(r"\b(" + "|".join(map(re.escape, words)) + r")\b") if words else None
+            words = {_text(s) for s in used} | names
+            if not words:
+                pattern = None
+            elif all(w.isidentifier() for w in words):  # (kinegen's names: no pattern of its own to compile)
+                pattern = _IDENTIFIER
+            else:
+                pattern = re.compile(r"\b(" + "|".join(map(re.escape, sorted(words, key=len, reverse=True))) + r")\b")
             self._naming[identity] = _Naming(used, pattern)
 
     def prepare(self, jobs: Sequence[tuple[CodePrinter, Group]], fork: bool = False) -> None:
@@ -300,7 +312,7 @@ class Printing:
             names.update({f"_t{k}": f"{prefix}{start + k}" for k in range(len(printed.temporaries))})
 
             def rename(text: str, names: dict[str, str] = names, printed: _Printed = printed) -> str:
-                return printed.pattern.sub(lambda m: names[m.group(0)], text) if printed.pattern else text
+                return printed.pattern.sub(lambda m: names.get(m.group(0), m.group(0)), text) if printed.pattern else text
 
             for k, texts in enumerate(printed.temporaries):
                 out.temporaries.append((f"{prefix}{start + k}", *(rename(t) for t in texts)))
