@@ -49,13 +49,14 @@ class Statements:
         return frozenset(found - names)
 
 
-def code(printer: CodePrinter, expr: sp.Expr) -> str:
+def code(printer: CodePrinter, expr: sp.Expr, has_re: bool | None = None) -> str:
     """``printer.doprint(expr)``'s text, printed by the printer's own methods without what
     ``doprint`` adds around them for one expression (its conversions and its pass replacing
     ``re(...)`` nodes, ~40 % of the time on the excavator's kernels): the same text whenever the
     expression has no ``re`` node and prints as one line needing no number declarations and nothing
-    unsupported. Otherwise ``doprint`` itself prints it."""
-    if isinstance(expr, sp.Basic) and not expr.has(sp.re):
+    unsupported. Otherwise ``doprint`` itself prints it. ``has_re``: whether ``expr`` has an ``re``
+    node, when the caller knows (one search for all its printers)."""
+    if isinstance(expr, sp.Basic) and not (expr.has(sp.re) if has_re is None else has_re):
         printer._not_supported, printer._number_symbols = set(), set()
         text = printer._print(expr)
         clean = not (printer._not_supported or printer._number_symbols)
@@ -207,11 +208,13 @@ class Shapes:
     def _print(self, group: Group, printers: Sequence[CodePrinter]) -> None:
         statements = self.statements(group)
         identity = self._identity(group)
+        values = [v for _, v in statements.temporaries]
+        has_re = [isinstance(e, sp.Basic) and e.has(sp.re) for e in (*values, *statements.outputs)]
         for printer in printers:
             if isinstance(printer, PrecedenceOnce):
                 printer.forget()  # the precedences kept while this group is printed
-            temporaries = [code(printer, v) for _, v in statements.temporaries]
-            outputs = [None if e == 0 else code(printer, e) for e in statements.outputs]
+            temporaries = [code(printer, v, r) for v, r in zip(values, has_re)]
+            outputs = [None if e == 0 else code(printer, e, r) for e, r in zip(statements.outputs, has_re[len(values) :])]
             self._texts[_kind(printer), identity] = (temporaries, outputs)
         if identity not in self._naming:
             used = statements.used
