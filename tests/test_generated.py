@@ -186,7 +186,7 @@ def test_the_printers_own_methods_give_doprints_text_for_every_statement():
             assert code(printer, expr) == expected, (type(printer).__name__, expr)
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_the_printers_sums_and_products_are_sympys_own_text(data):
     """kinegen's printers print sums and products with their precedences kept (PrecedenceOnce):
