@@ -391,12 +391,19 @@ class _Sensitivities:
     def _tangent(self, expr: se.Basic, bodies: list) -> dict[int, se.Basic]:
         """:func:`kinegen.symbolic.assembly.tangent_jacobian` in SymEngine."""
         out = {}
+        derivatives: dict[se.Basic, se.Basic] = {}  # d expr/ds, once per symbol: it enters several directions
+
+        def derivative(s: se.Basic) -> se.Basic:
+            if s not in derivatives:
+                derivatives[s] = expr.diff(s)
+            return derivatives[s]
+
         for body in bodies:
             if body.name not in self._tangents:
                 to = self._bridge.to
                 self._tangents[body.name] = [[(to(s), to(d)) for s, d in pairs] for pairs in body.tangents]
             for k, pairs in enumerate(self._tangents[body.name]):
-                total = se.Add(*(expr.diff(s) * d for s, d in pairs))
+                total = se.Add(*(derivative(s) * d for s, d in pairs))
                 if total != 0:
                     out[body.velocity_offset + k] = total
         return out
