@@ -90,8 +90,24 @@ class BodyCoordinates:
     def frame_rates(self, direction: tuple[sp.Symbol, ...] | None = None) -> list[sp.Expr]:
         """d(frame symbol)/dt = sum_k d/dv_k v_k, in order (along ``direction`` instead of the
         velocity symbols: the change as the body moves along that tangent direction)."""
+        if direction is None:
+            return list(self._velocity_rates[0])
+        return self._frame_rates(direction)
+
+    def stored_rates(self, direction: tuple[sp.Symbol, ...] | None = None) -> list[sp.Expr]:
+        """d(stored coordinate)/dt = B(s) v, in order (along ``direction`` instead of v)."""
+        if direction is None:
+            return list(self._velocity_rates[1])
+        return list(self.velocity_map * sp.Matrix(direction))
+
+    @cached_property
+    def _velocity_rates(self) -> tuple[tuple[sp.Expr, ...], tuple[sp.Expr, ...]]:
+        """(frame rates, stored rates) along the velocity symbols: the same for every row the body is in."""
+        return tuple(self._frame_rates(self.velocity)), tuple(self.velocity_map * sp.Matrix(self.velocity))
+
+    def _frame_rates(self, direction: tuple[sp.Symbol, ...]) -> list[sp.Expr]:
         rates = [sp.Integer(0)] * len(self.frame_symbols)
-        for k, w in enumerate(self.velocity if direction is None else direction):
+        for k, w in enumerate(direction):
             for i, d in enumerate(self.frame_derivatives(k)):
                 if d != 0:
                     rates[i] += d * w
@@ -481,8 +497,7 @@ def along(expr: sp.Expr, bodies: list[BodyCoordinates], directions: list[tuple[s
         for symbol, rate in zip(body.frame_symbols, body.frame_rates(direction)):
             if rate != 0:
                 total += derivatives.get(symbol, zero) * rate
-        stored_rate = body.velocity_map * sp.Matrix(body.velocity if direction is None else direction)
-        for s, rate in zip(body.stored, stored_rate):
+        for s, rate in zip(body.stored, body.stored_rates(direction)):
             if rate != 0:
                 total += derivatives.get(s, zero) * rate
     return total
