@@ -189,16 +189,18 @@ def test_the_printers_own_methods_give_doprints_text_for_every_statement():
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_the_printers_sums_and_products_are_sympys_own_text(data):
-    """kinegen's printers print sums and products with their precedences kept (PrecedenceOnce):
+    """kinegen's printers print sums and products with their precedences kept, and find each type's
+    method once (PrecedenceOnce):
     on random expressions (negative, rational and float coefficients, negative and fractional
     powers, functions, nested sums; SymPy-evaluated and SymEngine's canonical form through
     engine.to_sympy; two unevaluated powers of a product), the text is that of SymPy's own
-    _print_Add, _print_Mul and parenthesize in each printer, and the kept precedence is SymPy's
+    _print, _print_Add, _print_Mul and parenthesize in each printer, and the kept precedence is SymPy's
     precedence (zoo's products too)."""
     import symengine as se
     from sympy.printing.c import C89CodePrinter
     from sympy.printing.codeprinter import CodePrinter
     from sympy.printing.precedence import precedence
+    from sympy.printing.printer import Printer
     from sympy.printing.str import StrPrinter
 
     from kinegen.codegen.backends.c.printer import CPrinter
@@ -229,7 +231,8 @@ def test_the_printers_sums_and_products_are_sympys_own_text(data):
         for node in sp.preorder_traversal(e):
             assert _precedence(node) == precedence(node), node
     for kind, product in ((CPrinter, C89CodePrinter._print_Mul), (ModulePrinter, CodePrinter._print_Mul), (ScalarPrinter, CodePrinter._print_Mul)):
-        sympys = type("Sympys", (kind,), {"_print_Add": StrPrinter._print_Add, "_print_Mul": product, "parenthesize": StrPrinter.parenthesize})
+        sympys = type("Sympys", (kind,), {"_print": Printer._print, "_print_Add": StrPrinter._print_Add, "_print_Mul": product,
+                                          "parenthesize": StrPrinter.parenthesize})  # fmt: skip
         for e in (expr, canonical, *unevaluated):
             if e.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
                 continue

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import sympy as sp
-from sympy.core.function import Function
+from sympy.core.function import AppliedUndef, Function, UndefinedFunction
 from sympy.core.mul import _keep_coeff
 from sympy.printing.precedence import PRECEDENCE, precedence
 
@@ -46,6 +48,19 @@ class PrecedenceOnce:
     def doprint(self, expr: sp.Basic, assign_to: object = None) -> str:
         self.forget()
         return super().doprint(expr, assign_to)
+
+    def _print(self, expr: object, **kwargs: object) -> str:
+        # Printer._print with the method it finds for a type found once: the same method, called the same way
+        kind = type(expr)
+        key = (type(self), kind)
+        method = _METHODS[key] if key in _METHODS else _METHODS.setdefault(key, _method(type(self), kind))
+        if method is None or (kind.__dictoffset__ and self.printmethod in vars(expr)):  # (an object printing itself)
+            return super()._print(expr, **kwargs)
+        self._print_level += 1
+        try:
+            return method(self, expr, **kwargs)
+        finally:
+            self._print_level -= 1
 
     def precedence_of(self, item: sp.Basic) -> int:
         """SymPy's ``precedence(item)``, kept."""
@@ -114,6 +129,32 @@ class PrecedenceOnce:
         if len(b) == 1:
             return sign + "*".join(a_str) + "/" + b_str[0]
         return sign + "*".join(a_str) + "/({})".format("*".join(b_str))
+
+
+#: (printer class, expression type) -> the printer's method for it, None where SymPy's own dispatch decides
+_METHODS: dict[tuple[type, type], Callable[..., str] | None] = {}
+
+
+def _method(printer: type, kind: type) -> Callable[..., str] | None:
+    """The ``_print_<class>`` method SymPy's ``Printer._print`` calls for an expression of type ``kind``
+    (its class walk: an undefined function's own classes skipped, a renamed subclass of a known
+    function too), or None where it does something else: an object that prints itself (its type
+    has the printer's ``printmethod``), a class, no method (``emptyPrinter``)."""
+    if issubclass(kind, type) or (printer.printmethod and hasattr(kind, printer.printmethod)):
+        return None
+    classes = kind.__mro__
+    if AppliedUndef in classes:
+        classes = classes[classes.index(AppliedUndef) :]
+    if UndefinedFunction in classes:
+        classes = classes[classes.index(UndefinedFunction) :]
+    if Function in classes:
+        i = classes.index(Function)
+        classes = tuple(c for c in classes[:i] if c.__name__ == classes[0].__name__ or c.__name__.endswith("Base")) + classes[i:]
+    for cls in classes:
+        method = getattr(printer, "_print_" + cls.__name__, None)
+        if method is not None:
+            return method
+    return None
 
 
 def _precedence(item: sp.Basic) -> int:
