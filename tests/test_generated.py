@@ -190,12 +190,11 @@ def test_the_printers_own_methods_give_doprints_text_for_every_statement():
 @given(st.data())
 def test_the_printers_sums_and_products_are_sympys_own_text(data):
     """kinegen's printers print sums and products with their precedences kept, and find each type's
-    method once (PrecedenceOnce):
-    on random expressions (negative, rational and float coefficients, negative and fractional
-    powers, functions, nested sums; SymPy-evaluated and SymEngine's canonical form through
-    engine.to_sympy; two unevaluated powers of a product), the text is that of SymPy's own
-    _print, _print_Add, _print_Mul and parenthesize in each printer, and the kept precedence is SymPy's
-    precedence (zoo's products too)."""
+    method once (PrecedenceOnce): on random expressions (negative, rational and float coefficients,
+    negative and fractional powers, functions, nested sums; SymPy-evaluated and SymEngine's
+    canonical form through engine.to_sympy; two unevaluated powers of a product), the text is that of
+    SymPy's own _print, _print_Add, _print_Mul and parenthesize in each printer, and the kept
+    precedence is SymPy's precedence (zoo's products too)."""
     import symengine as se
     from sympy.printing.c import C89CodePrinter
     from sympy.printing.codeprinter import CodePrinter

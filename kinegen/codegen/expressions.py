@@ -24,18 +24,21 @@ def freeze_numbers(expr: sp.Expr) -> sp.Expr:
 
 class PrecedenceOnce:
     """A printer mixin: SymPy's sums and products printed with each expression's precedence
-    computed once and kept until :meth:`forget`. SymPy's printers ask for it up to three times per
+    computed once and kept until :meth:`forget`, and each expression type's print method found once
+    (:meth:`_print`: SymPy's ``Printer._print`` walks the type's classes at every node). SymPy's printers ask for it up to three times per
     node, a product's each time through ``could_extract_minus_sign``, which builds the product's
     negation to compare it with itself (~a third of printing the excavator's kernels). The same
     text: the precedence of an expression is a function of the expression, and :meth:`_print_Add`
     and :meth:`_print_Mul` are SymPy's (``StrPrinter``'s and ``CodePrinter``'s, SymPy pinned
-    exactly) with only their precedences taken from here. ``doprint`` forgets first, and so does
+    exactly) with only their precedences taken from here, and :meth:`_print` calls the method
+    ``Printer._print`` finds. ``doprint`` forgets first, and so does
     :class:`kinegen.codegen.shapes.Shapes` before each group's statements: a printer kept for the
     process does not keep every expression it printed alive."""
 
     def __init_subclass__(cls, **kwargs: object) -> None:
         super().__init_subclass__(**kwargs)
-        for name, owners in (("_print_Add", ("StrPrinter",)), ("_print_Mul", ("CodePrinter", "C89CodePrinter"))):
+        replaced_methods = (("_print", ("Printer",)), ("_print_Add", ("StrPrinter",)), ("_print_Mul", ("CodePrinter", "C89CodePrinter")))
+        for name, owners in replaced_methods:
             replaced = next(c for c in cls.__mro__[cls.__mro__.index(PrecedenceOnce) + 1 :] if name in c.__dict__)
             if replaced.__name__ not in owners:  # a printer whose own method this mixin would hide
                 raise TypeError(

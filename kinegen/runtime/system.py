@@ -421,8 +421,8 @@ def _compiled_where_declared(
     python = design_fields.get("sensitivity_kernels")
     if python:
         design_fields["sensitivity_kernels"] = {kind: _compiled_or(native, first(kind, True), function) for kind, function in python.items()}
-        if design_fields.get("frames_d") is not None:  # (the complete library's, as the sensitivity kernels)
-            design_fields["frames_d"] = _compiled_or(native, first("frames_d", True), design_fields["frames_d"])
+        # frames_d comes with them (from_module): the complete library's too
+        design_fields["frames_d"] = _compiled_or(native, first("frames_d", True), design_fields["frames_d"])
     return statics, declared
 
 

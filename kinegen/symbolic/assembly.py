@@ -103,7 +103,7 @@ class BodyCoordinates:
     @cached_property
     def _velocity_rates(self) -> tuple[tuple[sp.Expr, ...], tuple[sp.Expr, ...]]:
         """(frame rates, stored rates) along the velocity symbols: the same for every row the body is in."""
-        return tuple(self._frame_rates(self.velocity)), tuple(self.velocity_map * sp.Matrix(self.velocity))
+        return tuple(self._frame_rates(self.velocity)), tuple(self.stored_rates(self.velocity))
 
     def _frame_rates(self, direction: tuple[sp.Symbol, ...]) -> list[sp.Expr]:
         rates = [sp.Integer(0)] * len(self.frame_symbols)
