@@ -275,25 +275,51 @@ def test_a_system_whose_drivers_are_not_last_is_refused(excavator):
 def test_the_grids_chord_deviations_are_each_steps_own_and_bound_the_inputs_between_samples(excavator, case):
     """The Python certificate takes the chord deviations of a whole grid in one pass: each step's
     equal to the bit to its own call's (what a halved step computes), and each a bound on how far
-    the case's functions, sampled 200 times within the step, stray from the chord between its ends."""
-    from kinegen.runtime.solver import chord_deviation
+    the case's functions, sampled 200 times within the step, stray from the chord between its ends.
+    Where the deviation is the curvature's, its split holds at every sample too: the error is
+    -(4 sigma / h^2)(curve + delta), |delta| <= beyond, sigma = (s - t0)(t1 - s)."""
+    from kinegen.runtime.solver import chord_bounds
 
     system = from_module(excavator, case, compiled=False)
     times = np.linspace(system.t0, system.t1, 41)
     u = system.driver_inputs(times)[0]
     ranges = np.asarray(system.input_ranges((times[:-1], times[1:])), dtype=float).reshape(-1, len(times) - 1)
-    together = chord_deviation(ranges, np.diff(times), u[:, 1:], np.diff(u, axis=1))
-    moving = 0
+    together = chord_bounds(ranges, np.diff(times), u[:, 1:], np.diff(u, axis=1))
+    moving = split = 0
     for i in range(len(times) - 1):
         h = times[i + 1] - times[i]
-        alone = chord_deviation(ranges[:, i], h, u[:, i + 1], u[:, i + 1] - u[:, i])
-        assert np.array_equal(together[:, i], alone), i
+        alone = chord_bounds(ranges[:, i], h, u[:, i + 1], u[:, i + 1] - u[:, i])
+        assert np.array_equal(together[:, :, i], alone), i
+        deviation, curve, beyond = alone
         fine = np.linspace(times[i], times[i + 1], 201)
         chord = u[:, [i]] + (fine - times[i]) / h * (u[:, [i + 1]] - u[:, [i]])
-        strayed = np.abs(system.driver_inputs(fine)[0] - chord).max(axis=1)
-        assert np.isfinite(alone).all() and (strayed <= alone + 1e-15).all(), (i, strayed, alone)
-        moving += int((strayed > 0).sum())
-    assert moving > 0  # the functions do curve between samples
+        error = system.driver_inputs(fine)[0] - chord
+        assert np.isfinite(alone).all() and (np.abs(error).max(axis=1) <= deviation + 1e-15).all(), (i, error, deviation)
+        weight = 4.0 * (fine - times[i]) * (times[i + 1] - fine) / h**2  # 4 sigma / h^2, in [0, 1]
+        assert (np.abs(error + weight * curve[:, None]) <= weight * beyond[:, None] + 1e-15).all(), i
+        assert (np.abs(curve) + beyond <= deviation * (1 + 1e-12)).all(), i
+        moving += int((np.abs(error).max(axis=1) > 0).sum())
+        split += int((curve != 0).sum())
+    assert moving > 0 and split > 0  # the functions do curve between samples, and their curvature is bounded
+
+
+def test_the_split_deviations_bound_is_never_above_the_deviations_own():
+    """The exact bound with the curvature's split, |W D| + max(|W curve| + |W| beyond), is never above
+    |W D| + max(|W| c) (the chord deviations alone), for any W: random columns, changes and splits."""
+    from kinegen.runtime.solver import input_effect
+
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        nv, ni = rng.integers(1, 12), rng.integers(1, 6)
+        w = rng.normal(size=(nv, ni)) * 10.0 ** rng.integers(-3, 3, size=ni)
+        u0, u1 = rng.normal(size=ni), rng.normal(size=ni)
+        curve, beyond = rng.normal(size=ni) * 1e-3, rng.uniform(0, 1e-3, size=ni)
+        c = np.abs(curve) + beyond
+        start, end = (u0, np.zeros(ni)), (u1, np.zeros(ni))
+        split, _ = input_effect(lambda which, w=w: w[:, which], 0.1, start, end, np.stack((c, curve, beyond)))
+        whole, _ = input_effect(lambda which, w=w: w[:, which], 0.1, start, end, np.stack((c, np.zeros(ni), c)))
+        assert split <= whole * (1 + 1e-12)
+
 
 @needs_cc
 def test_the_shipped_cases_are_never_subdivided(excavator):

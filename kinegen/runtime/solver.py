@@ -541,17 +541,19 @@ class Solver:
         grid_deviations: list[np.ndarray] = []  # the inputs' chord deviations over every grid step, made when first needed
 
         def deviations_of(t0: float, t1: float, i: int, u0: np.ndarray, u1: np.ndarray) -> np.ndarray | None:
-            """Per input, its chord deviation (:func:`chord_deviation`) over [t0, t1] within grid step i, from
-            u0 at t0 to u1 at t1 (None: tabulated inputs). Over the grid's own steps every step's at once:
-            the enclosures of the case's functions in one call, the bounds in one pass (the same values)."""
+            """Per input, its chord deviation and that deviation's split (:func:`chord_bounds`) over [t0, t1]
+            within grid step i, from u0 at t0 to u1 at t1 (None: tabulated inputs). Over the grid's own steps
+            every step's at once: the enclosures of the case's functions in one call, the bounds in one pass
+            (the same values)."""
             if tabulated or system.input_ranges is None:
                 return None
             if (t0, t1) != (times[i - 1], times[i]):
                 ranges = np.asarray(system.input_ranges((np.array([t0]), np.array([t1]))), dtype=float)[:, 0]
-                return chord_deviation(ranges, t1 - t0, u1, u1 - u0)
+                return chord_bounds(ranges, t1 - t0, u1, u1 - u0)
             if not grid_deviations:
                 ranges = np.asarray(system.input_ranges((times[:-1], times[1:])), dtype=float).reshape(-1, k - 1)
-                grid_deviations.append(chord_deviation(ranges, np.diff(times), u_all[:, 1:], np.diff(u_all, axis=1)).T.copy())
+                together = chord_bounds(ranges, np.diff(times), u_all[:, 1:], np.diff(u_all, axis=1))
+                grid_deviations.append(np.ascontiguousarray(together.transpose(2, 0, 1)))
             return grid_deviations[0][i - 1]
 
         def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -803,6 +805,7 @@ class Solver:
         -Phi_u 1 at the solution (the exact bound's columns take the same values)."""
         if deviation is None or factors.lu is None:
             return None
+        deviation = deviation[0]  # c (chord_bounds): the split is left to the exact bound
         change = u1 - u0
         if np.count_nonzero((change != 0) | (deviation != 0)) < 2 or not np.isfinite(deviation).all():
             return None
@@ -914,16 +917,36 @@ def chord_deviation(ranges: np.ndarray, h: float | np.ndarray, u1: np.ndarray, c
     return np.where(np.isnan(bound), np.inf, bound)
 
 
+def chord_bounds(ranges: np.ndarray, h: float | np.ndarray, u1: np.ndarray, change: np.ndarray) -> np.ndarray:
+    """Per input, (c, curve, beyond): its :func:`chord_deviation` c, and where c is the curvature's bound
+    h^2/8 max |d2u/dt2|, with d2u/dt2 enclosed in mid +- rad over the step, curve = h^2/8 mid and beyond
+    = h^2/8 rad (|curve| + beyond is c); elsewhere curve = 0 and beyond = c. The linear interpolation's
+    error is e(s) = -(sigma/2) d2u/dt2 at some point of the step, sigma = (s - t0)(t1 - s), one factor for
+    every input: so e(s) = -(4 sigma / h^2)(curve + delta), |delta| <= beyond (:func:`input_effect`).
+    Arguments as :func:`chord_deviation`'s; the three stacked first (3, n_inputs[, K]). The C solver's
+    chord_deviation (kinegen_solver.c) to the bit."""
+    n = len(u1)
+    deviation = chord_deviation(ranges, h, u1, change)
+    lower, upper = ranges[2 * n : 3 * n], ranges[5 * n :]
+    with np.errstate(all="ignore"):
+        fine = h * h / 8.0 * np.maximum(np.abs(lower), np.abs(upper))
+        mid = 0.5 * (lower + upper)
+        rad = np.maximum(upper - mid, mid - lower)
+        split = (deviation == fine) & np.isfinite(mid) & np.isfinite(rad)
+        return np.stack((deviation, np.where(split, h * h / 8.0 * mid, 0.0), np.where(split, h * h / 8.0 * rad, deviation)))
+
+
 def input_effect(columns, h: float, start: tuple[np.ndarray, np.ndarray], end: tuple[np.ndarray, np.ndarray],
                  deviation: np.ndarray | None) -> tuple[float, tuple[int, str] | None]:  # fmt: skip
     """A bound on max over a step of h of |W (u(s) - u1)| (max-norm), W = J1^-1 Phi_u given by
     ``columns(which)`` (its columns ``which``), the inputs (u, du/dt) at the step's ``start`` and
     ``end``; and the input that contributes most, with what it does there (None when nothing moves).
 
-    * The case's own time functions (``deviation``: c_k, each input's :func:`chord_deviation` over the
-      step, from their enclosures there): u(s) - u1 = -(1 - r) D + e(s), D = u1 - u0, |e_k| <= c_k, so
-      at most |W D| + |sum_k |W_k| c_k|: certified for the functions themselves, however they move
-      between the step's ends.
+    * The case's own time functions (``deviation``: (c, curve, beyond), each input's :func:`chord_bounds`
+      over the step, from their enclosures there): u(s) - u1 = -(1 - r) D + e(s), D = u1 - u0, |e_k| <=
+      c_k, and e(s) = -(4 sigma / h^2)(curve + delta(s)) with 0 <= 4 sigma / h^2 <= 1 and |delta_k| <=
+      beyond_k, so at most |W D| + max over rows of (|W curve| + sum_k |W_k| beyond_k) -- never above |W D|
+      + |sum_k |W_k| c_k|: certified for the functions themselves, however they move between the step's ends.
     * Tabulated inputs (``deviation`` None): the cubic Hermite path of the values and rates at both
       ends, u(s) - u1 = -(1-r) D + r (1-r)^2 A - r^2 (1-r) B with A = h ud0 - D, B = h ud1 - D, so at
       most |W D| + 4/27 (|W A| + |W B|) -- certified for that path (the stated assumption).
@@ -933,15 +956,17 @@ def input_effect(columns, h: float, start: tuple[np.ndarray, np.ndarray], end: t
     tabulated = deviation is None
     if tabulated:
         a, b = h * ud0 - change, h * ud1 - change
-        deviation = np.zeros_like(change)
+        deviation = curve = beyond = np.zeros_like(change)
     else:
         a = b = np.zeros_like(change)
+        deviation, curve, beyond = deviation
     moving = np.flatnonzero((change != 0) | (a != 0) | (b != 0) | (deviation != 0))
     if not moving.size:
         return 0.0, None
     w = columns(moving)
     with np.errstate(all="ignore"):
-        spread = np.abs(w) @ np.where(w.any(axis=0), deviation[moving], 0.0)  # an input that does nothing adds nothing
+        # an input that does nothing adds nothing
+        spread = np.abs(w) @ np.where(w.any(axis=0), beyond[moving], 0.0) + np.abs(w @ curve[moving])
         effect = float(abs(w @ change[moving]).max()) + float(spread.max())
         effect += 4.0 / 27.0 * (float(abs(w @ a[moving]).max()) + float(abs(w @ b[moving]).max()))
         shares = np.abs(w).max(axis=0) * (np.abs(change[moving]) + deviation[moving] + 4.0 / 27.0 * (np.abs(a[moving]) + np.abs(b[moving])))
