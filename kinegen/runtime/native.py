@@ -703,9 +703,14 @@ class NativeSolver:
         code = self.library.kinegen_start(self.pointer, t, *(x.ctypes.data for x in arrays))
         return self.case.abi.status_name(code)
 
-    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray, ud: np.ndarray) -> int:
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray, ud: np.ndarray,
+               previous: tuple[np.ndarray, float] | None = None) -> int:  # fmt: skip
+        """kinegen_resume: (t, q, v, a) solved elsewhere; ``previous``: the acceleration at the start of the
+        step that ended there and its length (the next step's third-order predictor term), None: none."""
         arrays = [np.ascontiguousarray(x, dtype=float) for x in (q, v, a, u, ud)]
-        return self.library.kinegen_resume(self.pointer, t, *(x.ctypes.data for x in arrays))
+        before = None if previous is None else np.ascontiguousarray(previous[0], dtype=float)
+        h = 0.0 if previous is None else float(previous[1])
+        return self.library.kinegen_resume(self.pointer, t, *(x.ctypes.data for x in arrays), None if before is None else before.ctypes.data, h)
 
     def state_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Copies of the solver's q, v, a."""

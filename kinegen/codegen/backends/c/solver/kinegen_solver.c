@@ -193,6 +193,8 @@ int kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_option
     s->path = s->cert + 10 * nv + 7 * m->n_inputs;
     s->bound_store = s->path + 5 * m->n_inputs;
     s->bound_off = s->bound_store + m->n_store;
+    s->a_start = s->bound_off + m->n_off;
+    s->a_prev = s->a_start + nv;
     s->pivots = ints;
     s->block_sign = ints + 2 * nv;
     s->factor_block_sign = s->block_sign + m->n_blocks;
@@ -1054,6 +1056,7 @@ int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u
     double travel, norm;
     if (s->role != NULL) return KINEGEN_MODEL;
     memcpy(s->trial, q0, sizeof(double) * (size_t)s->model->n_q);
+    s->has_prev = 0;
     status = newton(s, u, 0, &count, &travel, &norm);
     if (status != KINEGEN_OK) {
         s->have_factors = 0;
@@ -1063,16 +1066,21 @@ int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u
     return finish(s, t, u, ud, udd, count, norm, 0.0, 1);
 }
 
-/* One try at the whole step to t: predictor, Newton, certificate (last_try: no halving follows a refusal). */
+/* One try at the step to t: predictor, Newton, certificate (last_try: no halving follows a refusal; whole: the
+ * step kinegen_step was asked for, not a halved piece of it, whose predictor may take the third-order term). */
 static int attempt(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int *iterations,
-                   int last_try) {
+                   int last_try, int whole) {
     const kinegen_model *m = s->model;
     int n = m->n_v, count, status;
     double travel, norm, h = t - s->t;
     memcpy(s->trial, s->q, sizeof(double) * (size_t)m->n_q);
     memset(s->moved, 0, sizeof(double) * (size_t)n);
     if (s->options.predictor) {
-        for (int j = 0; j < n; ++j) s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
+        if (whole && s->has_prev) /* the jerk from the last step's accelerations (Python: Solver._step, the same sums) */
+            for (int j = 0; j < n; ++j)
+                s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h + (s->a[j] - s->a_prev[j]) / s->h_prev * h * h * h / 6.0;
+        else
+            for (int j = 0; j < n; ++j) s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
         m->retract(s->trial, s->moved);
     }
     status = newton(s, u, s->options.chord, &count, &travel, &norm);
@@ -1140,7 +1148,7 @@ static int advance(kinegen_solver *s, double t, const double *u, const double *u
             }
             pu = inputs, pud = inputs + ni, pudd = inputs + 2 * ni;
         }
-        int status = attempt(s, end, pu, pud, pudd, iterations, level >= limit);
+        int status = attempt(s, end, pu, pud, pudd, iterations, level >= limit, level == 0);
         if (status == KINEGEN_OK) {
             if (last) return KINEGEN_OK;
             for (++piece; level > 0 && piece % 2 == 0; --level) piece /= 2; /* a second half done: its whole is */
@@ -1157,12 +1165,24 @@ static int advance(kinegen_solver *s, double t, const double *u, const double *u
 }
 
 int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd) {
-    int iterations = 0;
+    int iterations = 0, status;
+    double t0 = s->t;
     if (s->role != NULL) return KINEGEN_MODEL;
     if (!s->started) return KINEGEN_NOT_STARTED;
     s->refinements = 0;
     s->branch_block = -1;
-    return advance(s, t, u, ud, udd, &iterations);
+    memcpy(s->a_start, s->a, sizeof(double) * (size_t)s->model->n_v);
+    status = advance(s, t, u, ud, udd, &iterations);
+    if (status == KINEGEN_OK) { /* the next step's third-order term (attempt) */
+        double *swap = s->a_prev;
+        s->a_prev = s->a_start;
+        s->a_start = swap;
+        s->h_prev = t - t0;
+        s->has_prev = 1;
+    } else {
+        s->has_prev = 0;
+    }
+    return status;
 }
 
 double kinegen_table_mismatch(int n, double h, const double *u0, const double *ud0, const double *udd0, const double *u1,
@@ -1185,9 +1205,14 @@ double kinegen_table_mismatch(int n, double h, const double *u0, const double *u
 }
 
 int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,
-                   const double *ud) {
+                   const double *ud, const double *a_prev, double h_prev) {
     const kinegen_model *m = s->model;
     if (s->role != NULL) return KINEGEN_MODEL;
+    s->has_prev = a_prev != NULL && h_prev > 0.0;
+    if (s->has_prev) {
+        memcpy(s->a_prev, a_prev, sizeof(double) * (size_t)m->n_v);
+        s->h_prev = h_prev;
+    }
     memcpy(s->q, q, sizeof(double) * (size_t)m->n_q);
     memcpy(s->v, v, sizeof(double) * (size_t)m->n_v);
     memcpy(s->a, a, sizeof(double) * (size_t)m->n_v);
@@ -1742,6 +1767,8 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_solver, moving, "int*"), FIELD(kinegen_solver, turning, "int*"), FIELD(kinegen_solver, n_turning, "int"),
     FIELD(kinegen_solver, path, "double*"), FIELD(kinegen_solver, bound_store, "double*"),
     FIELD(kinegen_solver, bound_off, "double*"), FIELD(kinegen_solver, have_bound, "int"),
+    FIELD(kinegen_solver, a_start, "double*"), FIELD(kinegen_solver, a_prev, "double*"), FIELD(kinegen_solver, h_prev, "double"),
+    FIELD(kinegen_solver, has_prev, "int"),
     FIELD(kinegen_solver, roles, "kinegen_roles"),
     FIELD(kinegen_solver, role, "char*"),
     {NULL, NULL, NULL, 0, 0},
@@ -1774,7 +1801,7 @@ const kinegen_struct kinegen_structs[] = {
     X(double, kinegen_table_mismatch, (int n, double h, const double *u0, const double *ud0, const double *udd0,       \
                                        const double *u1, const double *ud1, const double *udd1, int *input))           \
     X(int, kinegen_resume, (kinegen_solver *s, double t, const double *q, const double *v, const double *a,           \
-                            const double *u, const double *ud))                                                        \
+                            const double *u, const double *ud, const double *a_prev, double h_prev))                   \
     X(int, kinegen_trajectory, (kinegen_solver *s, int count, const double *times, const double *U, const double *UD,  \
                                 const double *UDD, double *Q, double *V, double *A, int *iterations, double *residuals, \
                                 double *conditions, int *status))                                                      \

@@ -77,7 +77,9 @@ typedef struct kinegen_options {
     double chord_rate;         /* chord iterations continue while max |Phi| falls by this factor (0.1) */
     double safety;             /* factor on the measured omega of the certificate (2) */
     int max_iterations;        /* Newton iterations per step (25) */
-    int predictor;             /* 1: start each step from q moved by v h + a h^2 / 2 (1) */
+    int predictor;             /* 1: start each step from q moved by v h + a h^2 / 2, on a whole step after another
+                                  + (a - a_prev) / h_prev h^3 / 6 (a_prev: a at the last step's start, h_prev its
+                                  length; a halved piece's is of second order) (1) */
     int chord;                 /* 1: reuse the last factorization while Newton converges fast (0) */
     int polish;                /* 1: one more correction with the factors at the solution (1) */
     int keep_branch;           /* 1: certify every step (above), halving it when needed (1) */
@@ -326,6 +328,10 @@ typedef struct kinegen_solver {
     double *bound_store, *bound_off; /* the certificate's coarse bound: the comparison matrices of the factors in
                                         store and off (n_store, n_off doubles), made when first needed */
     int have_bound;                  /* bound_store and bound_off are those of the factors in store */
+    double *a_start, *a_prev; /* a at the start of the step kinegen_step takes, and of the last one it took (n_v each) */
+    double h_prev;            /* the length of that last step; has_prev: a_prev and h_prev hold one (the predictor's
+                                 third-order term on a whole step: see kinegen_options.predictor) */
+    int has_prev;
     kinegen_roles roles;    /* the kernels it calls */
     const char *role;       /* after KINEGEN_MODEL from kinegen_init: the role it could not bind (else NULL) */
 } kinegen_solver;
@@ -338,7 +344,7 @@ typedef struct kinegen_solver {
 /* kinegen_init, one case: n_q stored and n_v velocity coordinates, n_jac values of Phi_q, n_store values of
  * its blocks' factors and n_off below them, n_blocks diagonal blocks, n_inputs drivers */
 #define KINEGEN_WORK_DOUBLES(n_q, n_v, n_jac, n_store, n_off, n_inputs) \
-    (2 * (n_q) + 20 * (n_v) + 2 * (n_jac) + 2 * (n_store) + 2 * (n_off) + 14 * (n_inputs))
+    (2 * (n_q) + 22 * (n_v) + 2 * (n_jac) + 2 * (n_store) + 2 * (n_off) + 14 * (n_inputs))
 #define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (3 * (n_v) + 2 * (n_blocks) + (n_inputs))
 /* kinegen_sensitivities: n_p design parameters, n_values the largest sensitivity kernel's output */
 #define KINEGEN_SENSITIVITY_DOUBLES(n_v, n_p, n_values) (2 * (n_v) * (n_p) + (n_values))
@@ -409,9 +415,11 @@ int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud,
 double kinegen_table_mismatch(int n, double h, const double *u0, const double *ud0, const double *udd0, const double *u1,
                               const double *ud1, const double *udd1, int *input);
 
-/* Take (t, q, v, a) solved elsewhere as the current state (u, ud: the inputs and their rates at t). */
+/* Take (t, q, v, a) solved elsewhere as the current state (u, ud: the inputs and their rates at t); a_prev: the
+ * acceleration at the start of the step that ended there, h_prev its length (NULL: none, the next step's
+ * predictor is of second order). */
 int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,
-                   const double *ud);
+                   const double *ud, const double *a_prev, double h_prev);
 
 /* Steps at times[0..count-1] (after a start or a resume) with inputs rows U, UD, UDD
  * (count x n_inputs, row-major); rows of Q (count x n_q), V, A (count x n_v) and the per-step
