@@ -209,8 +209,9 @@ def test_near_the_toggle_the_c_loop_halves_its_own_steps_and_the_branch_is_kept(
 
 def test_on_a_coarse_grid_the_certificates_coarse_bounds_accept_and_refuse_what_the_exact_one_does(monkeypatch):
     """The excavator's digging cycle on 41 points, its inputs moving in every step: the certificate
-    first tries the inputs' coarse bounds (two solves: kinegen_solver.c's input_effect, Python's
-    Solver._coarse_effect) and computes the exact one, column by column, when they decide nothing. On
+    first tries the inputs' coarse bounds (two solves, then two more with the curvature split:
+    kinegen_solver.c's input_effect, Python's Solver._coarse_effect) and computes the exact one, column
+    by column, when they decide nothing (Python's coarse bounds decided 68 of its 112 certificates here). On
     this grid all three happen (measured in C: of 101 certificates, 25 accepted by the coarse bound,
     16 refused by |W D| alone, 60 decided by the exact bound; 36 halvings). The reference is Python's
     certificate with the coarse bounds switched off: Python with them takes the same steps to the bit,

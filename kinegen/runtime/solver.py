@@ -618,7 +618,7 @@ class Solver:
                             previous_step=(accs[i - 2], times[i - 1] - times[i - 2]) if i >= 2 else None,
                         )
                     q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
-                    if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
+                    if (self.options.polish or self.chord) and factors.lu is not None:
                         q = self.retract(q, -self._solve(factors, solution.phi))
                 except KinegenError as error:
                     if i > 0 and isinstance(error, (BranchError, ConvergenceError)) and not isinstance(error, PrecisionError):
@@ -806,12 +806,14 @@ class Solver:
         alpha omega <= 1/2 leaves the term) by 1e-12 of it -- never below the exact bound, so the exact
         one certifies that step too --, or |W D| alone when it is above ``allowed`` by that margin and
         this is not the last try -- the exact bound is at least |W D|, so it refuses that step too.
+        Then, where inputs curve, |W D| + max(|W curve| + the comparison bound of sum_k |W_k| beyond_k)
+        (:func:`chord_bounds`; two more solves), returned by the same rule (the C solver's order).
         None when they decide nothing (or do not apply: tabulated inputs, fewer than two inputs moving,
         an input that nothing bounds, least squares): the exact bound decides. ``driver_rates()``:
         -Phi_u 1 at the solution (the exact bound's columns take the same values)."""
         if deviation is None or factors.lu is None:
             return None
-        deviation = deviation[0]  # c (chord_bounds): the split is left to the exact bound
+        deviation, curve, beyond = deviation  # chord_bounds: c, then its split
         change = u1 - u0
         if np.count_nonzero((change != 0) | (deviation != 0)) < 2 or not np.isfinite(deviation).all():
             return None
@@ -826,6 +828,12 @@ class Solver:
                 return coarse
             if not last_try and changed >= allowed + 1e-12 * abs(allowed):
                 return changed
+            if curve.any():  # then with the curvature split: |W D| + max(|W curve| + the bound of sum_k |W_k| beyond_k)
+                mean = np.zeros_like(rates)
+                mean[first:], spread[first:] = rates[first:] * curve, np.abs(rates[first:]) * beyond
+                top = float((abs(self._solve(factors, mean)) + self.linear.bound(factors.lu, spread)).max())
+                if changed + top <= allowed * (1.0 - 1e-12):
+                    return changed + top
         return None
 
     def _block_signs(self, factors: Factors) -> np.ndarray | None:

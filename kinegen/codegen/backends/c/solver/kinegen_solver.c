@@ -1032,7 +1032,7 @@ static int finish(kinegen_solver *s, double t, const double *u, const double *ud
         }
     }
     double condition = o->condition ? condition_estimate(s) : NAN;
-    if ((o->polish || o->chord) && count > 0) m->retract(s->trial, s->step);
+    if (o->polish || o->chord) m->retract(s->trial, s->step);
     memcpy(s->q, s->trial, sizeof(double) * (size_t)m->n_q);
     memcpy(s->jac_q, s->jac, sizeof(double) * (size_t)m->n_jac);
     memcpy(s->block_sign, s->factor_block_sign, sizeof(int) * (size_t)m->n_blocks);
