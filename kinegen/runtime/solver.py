@@ -680,7 +680,7 @@ class Solver:
         h = t1 - t0
         motion = v * h + 0.5 * a * h * h if opts.predictor else np.zeros_like(v)
         if opts.predictor and previous_step is not None and depth == 0 and previous_step[1] > 0:
-            motion = v * h + 0.5 * a * h * h + (a - previous_step[0]) / previous_step[1] * h * h * h / 6.0
+            motion = motion + (a - previous_step[0]) / previous_step[1] * h * h * h / 6.0  # (C's sum, left to right)
         guess = self.retract(q, motion) if opts.predictor else q
         u = inputs[0]
         try:

@@ -821,6 +821,16 @@ static double add_column(const double *restrict column, double change, double sp
     return m2 > m0 ? m2 : m0;
 }
 
+/* max over j of a_j + b_j, at least 0 (a NaN is passed over, as by fmax) */
+static double max_of_sum(const double *a, const double *b, int n) {
+    double top = 0.0;
+    for (int j = 0; j < n; ++j) {
+        double v = a[j] + b[j];
+        top = v > top ? v : top;
+    }
+    return top;
+}
+
 /* A bound on max over the step (from the state at s->t to t = s->t + h, inputs u, ud) of |W (u(s) - u1)|,
  * W = J1^-1 Phi_u (the factors in store), as input_effect in kinegen/runtime/solver.py:
  *   the case's own time functions (options.case_inputs): u(s) - u1 = -(1 - r) D + e(s), |e_k| <= the chord
@@ -909,13 +919,10 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
             solve(s, mean, mean);
             for (int j = 0; j < nv; ++j) spread[j] = fabs(mean[j]);
             if (changed >= 0.0) {
-                double *rest = s->w1, top = 0.0;
+                double *rest = s->w1;
                 spread_rhs(s, moving, 0, count, beyond, rest);
                 solve_bound(s, rest, rest);
-                for (int j = 0; j < nv; ++j) {
-                    double v = spread[j] + rest[j];
-                    top = v > top ? v : top; /* (a NaN is passed over, as by fmax) */
-                }
+                double top = max_of_sum(spread, rest, nv);
                 if (changed + top <= allowed * (1.0 - 1e-12)) return changed + top;
             }
         }
@@ -952,15 +959,12 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
             }
             int done = first + group;
             if (changed >= 0.0 && done < count) { /* the exact spread so far, the coarse bound of the rest */
-                double *rest = s->w1, top = 0.0;
+                double *rest = s->w1;
                 int from = by_piece ? m->input_pieces[moving[done]] : 0; /* the rest's first row with a value */
                 for (int c = done + 1; c < count && by_piece; ++c) from = m->input_pieces[moving[c]] < from ? m->input_pieces[moving[c]] : from;
                 spread_rhs(s, moving, done, count, beyond, rest);
                 solve_bound_from(s, rest, rest, from);
-                for (int j = 0; j < nv; ++j) {
-                    double v = spread[j] + rest[j];
-                    top = v > top ? v : top; /* (a NaN is passed over, as by fmax) */
-                }
+                double top = max_of_sum(spread, rest, nv);
                 if (changed + top <= allowed * (1.0 - 1e-12)) return changed + top;
             }
         }
@@ -1076,11 +1080,9 @@ static int attempt(kinegen_solver *s, double t, const double *u, const double *u
     memcpy(s->trial, s->q, sizeof(double) * (size_t)m->n_q);
     memset(s->moved, 0, sizeof(double) * (size_t)n);
     if (s->options.predictor) {
+        for (int j = 0; j < n; ++j) s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
         if (whole && s->has_prev) /* the jerk from the last step's accelerations (Python: Solver._step, the same sums) */
-            for (int j = 0; j < n; ++j)
-                s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h + (s->a[j] - s->a_prev[j]) / s->h_prev * h * h * h / 6.0;
-        else
-            for (int j = 0; j < n; ++j) s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
+            for (int j = 0; j < n; ++j) s->moved[j] += (s->a[j] - s->a_prev[j]) / s->h_prev * h * h * h / 6.0;
         m->retract(s->trial, s->moved);
     }
     status = newton(s, u, s->options.chord, &count, &travel, &norm);
