@@ -193,3 +193,39 @@ def test_a_determinants_size_is_counted_as_sympy_counts_it_and_no_further_than_n
         assert operations_up_to(expression, 10**9) == exact, expression
         for limit in (0, 3, exact - 1, exact):
             assert (operations_up_to(expression, limit) > limit) == (exact > limit), (expression, limit)
+
+
+def test_exact_numbers_are_the_simple_forms_decimals_and_rationals_they_stand_for_never_floats():
+    from kinegen.analysis.inspect import exact_number
+
+    rng = np.random.default_rng(7)
+    simple = [sp.Rational(int(p), int(q)) for p, q in zip(rng.integers(-999, 1000, 40), rng.integers(1, 1000, 40))]
+    simple += [sp.sqrt(int(n)) / int(m) for n, m in zip(rng.choice([2, 3, 5, 6, 7, 10, 11], 20), rng.integers(1, 31, 20))]  # (m^2 x^2 - n = 0: coefficients within 1000)
+    simple += [(int(a) + int(b) * sp.pi) / int(c) for a, b, c in zip(rng.integers(-9, 10, 20), rng.integers(1, 10, 20), rng.integers(1, 13, 20))]
+    simple += [sp.pi / 2, -sp.pi / 2, sp.sqrt(2) / 2, (1 + sp.sqrt(5)) / 2]
+    for number in simple:  # each its own simplest form, from its double (the solver's values: within 1e-15 of it)
+        assert sp.simplify(exact_number(float(number)) - number) == 0, number
+        for ulps in (-2, 1, 3):  # a solved value: a few units in the last place off
+            off = float(number) + ulps * np.spacing(float(number))
+            assert sp.simplify(exact_number(off) - number) == 0, (number, ulps)
+    for figure in ("0.22767", "1.95729", "-0.786562", "0.58502", "2.00192", "0.6891200000000008"):  # a model's decimals
+        assert exact_number(float(figure)) == sp.Rational(repr(round(float(figure), 10))), figure
+    for value in rng.uniform(-10, 10, 200):  # solved coordinates: no simple form, a rational within 1e-13
+        found = exact_number(float(value))
+        assert found.is_Rational and not found.atoms(sp.Float), value
+        assert abs(found - sp.Rational(float(value))) <= 1e-13 * max(1.0, abs(value)), value
+        assert found.q <= 10**13, value  # (small entries: determinants of large blocks stay fast)
+    assert exact_number(9e-14) == 0 and exact_number(-3e-14) == 0
+
+
+@pytest.mark.parametrize(("name", "param"), [("four_bar", "quaternion"), ("slider_crank", "quaternion"), ("four_bar", "euler:zxz")])
+def test_the_inspected_configuration_and_jacobian_are_exact(name, param):
+    # a solved configuration's coordinates were kept as floats where SymPy's nsimplify found no simple form:
+    # the "exact" rank and determinant were then computed in floating point
+    report = inspect(model(name), rotations.get(param), None, "0")
+    assert all(not sp.sympify(x).atoms(sp.Float) for x in report.q), report.q
+    assert not report.jacobian.atoms(sp.Float)
+    q = np.array([float(x) for x in report.q])
+    system = from_module(lambdify_model(model(name), rotations.get(param)))
+    phi, _ = system.evaluate(q, system.driver_inputs(0.0)[0])
+    assert np.abs(phi).max() <= 1e-12  # the exact configuration is the solved one, to 1e-13 per value

@@ -17,6 +17,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -132,23 +133,68 @@ def summary(expr: sp.Expr) -> str:
     )
 
 
-@functools.lru_cache(maxsize=4096)  # ~0.1 s a value (PSLQ); the parametrizations of one pose share most values
+@functools.lru_cache(maxsize=4096)  # (~3 ms a value; the parametrizations of one pose share most values)
 def exact_number(value: float) -> sp.Expr:
-    """The simple exact number (rational, surd, multiple of pi) equal to ``value`` to 1e-13, else
-    the nearest rational with a denominator of at most 1e13 (within 1e-13 too: the configuration
-    inspected is as close to the solved one, and its exact entries stay small -- the full binary
-    expansion of a solved coordinate made determinants of large blocks several times slower).
+    """An exact number (never a float) equal to ``value`` to 1e-13 (relative, at least absolute):
+    the first of
 
-    Values smaller than :data:`ZERO` in magnitude are taken as exactly 0.
+    - 0, for values smaller than :data:`ZERO` in magnitude;
+    - a simple form (:func:`simple_form`): a rational, a quadratic surd, or a rational combination
+      of 1 and pi, with integer coefficients up to 1000 (``8/25``, ``sqrt(3)/2``, ``-pi/2``);
+    - the shortest decimal of at most 13 significant digits (``0.22767`` -> ``22767/100000``: a
+      model's own figure, not the rational nearest its binary double);
+    - the nearest rational with a denominator of at most 1e13.
+
+    The configuration inspected is as close to the solved one, and its exact entries stay small (the
+    full binary expansion of a solved coordinate made determinants of large blocks several times
+    slower).
     """
     if abs(value) < ZERO:
         return sp.Integer(0)
-    for constants in ([], [sp.pi]):
-        guess = sp.nsimplify(value, constants, tolerance=1e-13, rational=False)
-        # a simple form only: a guess like 27*2**(7/25)*...*pi**(62/5) is a coincidence, not the value
-        if abs(float(guess) - value) <= 1e-12 * max(1.0, abs(value)) and sp.count_ops(guess) <= 8 and _small(guess):
-            return guess
+    simple = simple_form(value)
+    if simple is not None:
+        return simple
+    close = 1e-13 * max(1.0, abs(value))
+    for digits in range(1, 14):
+        decimal = sp.Rational(f"{value:.{digits - 1}e}")
+        if abs(float(decimal) - value) <= close:
+            return decimal
     return sp.Rational(float(value)).limit_denominator(10**13)
+
+
+#: The largest integer coefficient :func:`simple_form` looks for (mpmath.identify's default).
+MAX_COEFFICIENT = 1000
+
+
+def simple_form(value: float) -> sp.Expr | None:
+    """``value`` as a simple exact number if it is one to 1e-13 (relative, at least absolute), else None:
+    p/q with q up to :data:`MAX_COEFFICIENT` (the nearest such fraction, by continued fractions), a
+    root of a + b x + c x^2 = 0, or (a + b pi)/c, integers up to :data:`MAX_COEFFICIENT` in magnitude
+    (integer relations found by mpmath's PSLQ at 30 digits), tried in that order. These are the forms
+    SymPy's ``nsimplify`` finds first (through ``mpmath.identify``), in two PSLQ runs instead of its
+    ~60 transformations of the value, which run in full (~0.3 s) for every number without a simple
+    form: the solved coordinates of a mechanism."""
+    import mpmath
+
+    close = 1e-13 * max(1.0, abs(value))
+    found: list[sp.Expr] = [sp.Rational(Fraction(value).limit_denominator(MAX_COEFFICIENT))]
+    with mpmath.workdps(30):
+        x = mpmath.mpf(value)
+        tolerance = mpmath.mpf(1e-13)
+        quadratic = mpmath.pslq([1, x, x * x], tolerance, MAX_COEFFICIENT)
+        if quadratic is not None and quadratic[2]:
+            a, b, c = (int(k) for k in quadratic)
+            discriminant = b * b - 4 * a * c
+            if discriminant >= 0:
+                roots = [(-b + sign * sp.sqrt(discriminant)) / (2 * c) for sign in (1, -1)]
+                found.append(min(roots, key=lambda r: abs(float(r) - value)))
+        with_pi = mpmath.pslq([x, 1, mpmath.pi], tolerance, MAX_COEFFICIENT)
+        if with_pi is not None and with_pi[0]:
+            found.append(-(sp.Integer(int(with_pi[1])) + int(with_pi[2]) * sp.pi) / int(with_pi[0]))
+    for guess in found:
+        if abs(float(guess) - value) <= close and sp.count_ops(guess) <= 8 and _small(guess):
+            return guess
+    return None
 
 
 def _small(expr: sp.Expr) -> bool:
