@@ -261,16 +261,17 @@ MAX_FACTOR_OPS = 1500
 MAX_EXPAND_OPS = 50_000
 
 
-def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr | None:
+def _factored_determinant(matrix: sp.Matrix, simplify: bool = True, blocks: list | None = None) -> sp.Expr | None:
     """det, factored: polynomial determinants (quaternion, Euler parameters) by ``factor``;
     trigonometric ones (Euler angles) simplified with sums and multiples expanded first.
     None when the expression is too large to expand (the value at the configuration is then
-    the exact matrix's determinant)."""
+    the exact matrix's determinant). ``blocks``: the matrix's block-triangular form, if known
+    (:func:`_determinant`)."""
     # SymPy's multivariate factoring (Wang's algorithm) draws random evaluation points; from a fixed
     # seed its work -- and so its time -- is the same in every process (from an unlucky state the
     # slider crank's dead-centre block, 5 s otherwise, took minutes in a full test run)
     sympy_random.seed(0)
-    det = matrix.det(method="berkowitz")
+    det = _determinant(matrix, blocks)
     if det.has(sp.sin, sp.cos, sp.tan):
         det = sp.expand_trig(sp.simplify(det) if simplify and matrix.shape[0] <= 3 else det)
     ops = operations_up_to(det, MAX_EXPAND_OPS)
@@ -281,6 +282,34 @@ def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr |
         if operations_up_to(det, MAX_FACTOR_OPS) > MAX_FACTOR_OPS:
             return det
     return _trig_simplified(sp.factor(det))
+
+
+def _determinant(matrix: sp.Matrix, blocks: list | None = None) -> sp.Expr:
+    """det ``matrix`` by Berkowitz's algorithm; with its block-triangular form (``blocks`` in order, as
+    :func:`_block_form` gives them), the product of its diagonal blocks' determinants and of the
+    signs of the two orders they put the rows and columns in: the same polynomial, derived block by
+    block (the RSSR linkage's 12 x 12 determinant in quaternions did not finish within a minute whole;
+    by its ten blocks it takes a fraction of a second)."""
+    if not blocks or len(blocks) == 1:
+        return matrix.det(method="berkowitz")
+    rows = [i for block in blocks for i in block.rows]
+    cols = [j for block in blocks for j in block.cols]
+    product = sp.Mul(*(matrix.extract(list(block.rows), list(block.cols)).det(method="berkowitz") for block in blocks))
+    return _order_sign(rows) * _order_sign(cols) * product
+
+
+def _order_sign(order: list[int]) -> int:
+    """The sign of the permutation that puts ``range(len(order))`` in ``order``: -1 for an odd number of transpositions."""
+    seen, sign = set(), 1
+    for start in range(len(order)):
+        length, k = 0, start
+        while k not in seen:
+            seen.add(k)
+            k = order[k]
+            length += 1
+        if length and length % 2 == 0:
+            sign = -sign
+    return sign
 
 
 def operations_up_to(expr: sp.Expr, limit: int) -> int:
@@ -555,7 +584,7 @@ def inspect(
     try:
         with allowed.limit():
             if symbolic.shape[1] <= MAX_DIRECT:
-                exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
+                exact = symbolic.xreplace(values).applyfunc(_exact_entry)
                 return _direct(system, t_exact, q_exact, exact, on_poses(symbolic), values, allowed)
             exact = symbolic.xreplace(values).applyfunc(_entry)
             return _by_blocks(system, t_exact, q_exact, exact, symbolic, on_poses, values, allowed, every_block)
@@ -606,6 +635,17 @@ def _pose_substitution(system: System):
     return (lambda matrix: matrix.xreplace(substitution).applyfunc(sp.expand)), origins
 
 
+def _exact_entry(value: sp.Expr) -> sp.Expr:
+    """An entry of a small Phi_q at the configuration, simplified. The configuration's values are exact
+    (:func:`exact_number`), so the entry is an exact number already, and ``sin(8/25)`` stays itself:
+    SymPy's ``nsimplify``, applied to every entry before, turned such a number into a look-alike equal
+    to 15 digits (``sin(50847386919/5000000000000)`` into ``2821109907456*2**(4/7)*3**(1/14)*...``)
+    after up to 0.3 s of PSLQ. An entry with a float in it (none from kinegen's values) is still
+    given to ``nsimplify``."""
+    simplified = sp.simplify(value)
+    return sp.nsimplify(simplified) if simplified.has(sp.Float) else simplified
+
+
 def _entry(value: sp.Expr) -> sp.Expr:
     """An entry of a large Phi_q: exact if rational or a small surd, else a DIGITS-digit rational."""
     value = sp.expand(value)
@@ -624,19 +664,19 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
     report = Inspection(system, t_exact, q_exact, exact, rank, null, dependent)
     m, n = exact.shape
     if m == n:
-        try:
-            det = _factored_determinant(symbolic)
+        try:  # (what is derived from the determinant too: a budget that runs out there leaves the rank proven)
+            det = _factored_determinant(symbolic, blocks=_block_form(system))
+            if det is None:
+                value, vanishing = sp.nsimplify(sp.simplify(exact.det(method="berkowitz"))), []
+            else:
+                value = sp.simplify(det.xreplace(values))
+                _, factors = sp.factor_list(det)
+                vanishing = [f for f, _ in factors if _is_zero(f.xreplace(values))]
         except _Expired:  # the rank is proven; the symbolic form is what ran out of time
             budget.stop()
             report.unfinished = budget.exhausted
             return report
-        report.determinant = det
-        if det is None:
-            report.determinant_value = sp.nsimplify(sp.simplify(exact.det(method="berkowitz")))
-            return report
-        report.determinant_value = sp.simplify(det.xreplace(values))
-        _, factors = sp.factor_list(det)
-        report.vanishing_factors = [f for f, _ in factors if _is_zero(f.xreplace(values))]
+        report.determinant, report.determinant_value, report.vanishing_factors = det, value, vanishing
     return report
 
 

@@ -177,6 +177,8 @@ class NumericSystem:
         driver's entry in the model file, its expression and the first failing time. ``step``: the
         two time points the solver subdivides between, where ``times`` lie inside a step."""
         times = np.asarray(times, dtype=float)
+        if self.n_inputs == 0:  # a structure without drivers (mobility 0): no time function to check
+            return tuple(np.zeros((0,) + times.shape) for _ in range(3))
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
