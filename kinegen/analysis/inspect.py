@@ -228,7 +228,7 @@ def configuration_at(model: Model, parametrization: Parametrization, case: str, 
 
 def _combination(vector: sp.Matrix, names: list[str]) -> str:
     pivot = next(x for x in vector if x != 0)
-    terms = [sp.nsimplify(sp.simplify(c / pivot)) * sp.Symbol(n) for c, n in zip(vector, names) if c != 0]
+    terms = [_exact_entry(c / pivot) * sp.Symbol(n) for c, n in zip(vector, names) if c != 0]
     return sp.sstr(sp.Add(*terms))
 
 
@@ -535,7 +535,7 @@ def _exact_values(system: System, q: np.ndarray, t_exact: sp.Expr) -> dict[sp.Sy
             origin = [float(sp.N(e.xreplace(values))) for e in body.origin]
             exact_origin = sp.Matrix([exact_number(x) for x in origin])
             for symbol, expr in param.pose_substitution(stored, exact_origin).items():
-                values[symbol] = sp.nsimplify(sp.expand(expr.xreplace(values)))
+                values[symbol] = _exact_entry(sp.expand(expr.xreplace(values)))
     values.update(system.inputs.at_time(t_exact))
     return values
 
@@ -579,7 +579,7 @@ def inspect(
     symbolic = system.jacobian_matrix().xreplace(named)
     q_exact = [values[s] for s in system.coordinates.stored_symbols]
     on_poses, origins = _pose_substitution(system)
-    values.update({r: sp.nsimplify(sp.simplify(e.xreplace(values))) for r, e in origins.items()})
+    values.update({r: _exact_entry(e.xreplace(values)) for r, e in origins.items()})
     allowed = Budget(budget)
     try:
         with allowed.limit():
