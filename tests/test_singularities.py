@@ -243,8 +243,6 @@ def test_the_inspected_configuration_and_jacobian_are_exact(name, param):
 def test_a_determinant_by_blocks_is_the_whole_matrixs(name, param):
     # det Phi_q from the block-triangular form (sign of the row order x sign of the column order x the
     # blocks' determinants) against NumPy's LU determinant of the whole matrix at random points
-    from sympy.combinatorics import Permutation
-
     from kinegen.symbolic import build_systems
 
     inspection = importlib.import_module("kinegen.analysis.inspect")
@@ -253,9 +251,6 @@ def test_a_determinant_by_blocks_is_the_whole_matrixs(name, param):
     matrix = system.jacobian_matrix()
     blocks = inspection._block_form(system)
     assert blocks is not None and len(blocks) > 1
-    rows = [i for block in blocks for i in block.rows]
-    cols = [j for block in blocks for j in block.cols]
-    assert (inspection._order_sign(rows), inspection._order_sign(cols)) == (Permutation(rows).signature(), Permutation(cols).signature())
     det = inspection._determinant(matrix, blocks)
     symbols = sorted(matrix.free_symbols, key=str)
     rng = np.random.default_rng(3)
@@ -263,10 +258,6 @@ def test_a_determinant_by_blocks_is_the_whole_matrixs(name, param):
         point = dict(zip(symbols, (sp.Float(x) for x in rng.uniform(-1.0, 1.0, len(symbols)))))
         numeric = np.array(matrix.xreplace(point).evalf().tolist(), dtype=float)
         assert float(det.xreplace(point)) == pytest.approx(np.linalg.det(numeric), rel=1e-9, abs=1e-12)
-    rng = np.random.default_rng(4)
-    for _ in range(20):  # the sign of orders of every parity
-        order = list(rng.permutation(9))
-        assert inspection._order_sign(order) == Permutation(order).signature()
 
 
 def test_the_rssr_linkages_determinant_is_derived_within_the_default_budget():

@@ -228,7 +228,7 @@ def configuration_at(model: Model, parametrization: Parametrization, case: str, 
 
 def _combination(vector: sp.Matrix, names: list[str]) -> str:
     pivot = next(x for x in vector if x != 0)
-    terms = [_exact_entry(c / pivot) * sp.Symbol(n) for c, n in zip(vector, names) if c != 0]
+    terms = [_exactly_simplified(c / pivot) * sp.Symbol(n) for c, n in zip(vector, names) if c != 0]
     return sp.sstr(sp.Add(*terms))
 
 
@@ -292,24 +292,12 @@ def _determinant(matrix: sp.Matrix, blocks: list | None = None) -> sp.Expr:
     by its ten blocks it takes a fraction of a second)."""
     if not blocks or len(blocks) == 1:
         return matrix.det(method="berkowitz")
-    rows = [i for block in blocks for i in block.rows]
-    cols = [j for block in blocks for j in block.cols]
+    from sympy.combinatorics import Permutation
+
+    rows = Permutation([i for block in blocks for i in block.rows])
+    cols = Permutation([j for block in blocks for j in block.cols])
     product = sp.Mul(*(matrix.extract(list(block.rows), list(block.cols)).det(method="berkowitz") for block in blocks))
-    return _order_sign(rows) * _order_sign(cols) * product
-
-
-def _order_sign(order: list[int]) -> int:
-    """The sign of the permutation that puts ``range(len(order))`` in ``order``: -1 for an odd number of transpositions."""
-    seen, sign = set(), 1
-    for start in range(len(order)):
-        length, k = 0, start
-        while k not in seen:
-            seen.add(k)
-            k = order[k]
-            length += 1
-        if length and length % 2 == 0:
-            sign = -sign
-    return sign
+    return rows.signature() * cols.signature() * product
 
 
 def operations_up_to(expr: sp.Expr, limit: int) -> int:
@@ -535,7 +523,7 @@ def _exact_values(system: System, q: np.ndarray, t_exact: sp.Expr) -> dict[sp.Sy
             origin = [float(sp.N(e.xreplace(values))) for e in body.origin]
             exact_origin = sp.Matrix([exact_number(x) for x in origin])
             for symbol, expr in param.pose_substitution(stored, exact_origin).items():
-                values[symbol] = _exact_entry(sp.expand(expr.xreplace(values)))
+                values[symbol] = _exactly_simplified(sp.expand(expr.xreplace(values)))
     values.update(system.inputs.at_time(t_exact))
     return values
 
@@ -579,12 +567,12 @@ def inspect(
     symbolic = system.jacobian_matrix().xreplace(named)
     q_exact = [values[s] for s in system.coordinates.stored_symbols]
     on_poses, origins = _pose_substitution(system)
-    values.update({r: _exact_entry(e.xreplace(values)) for r, e in origins.items()})
+    values.update({r: _exactly_simplified(e.xreplace(values)) for r, e in origins.items()})
     allowed = Budget(budget)
     try:
         with allowed.limit():
             if symbolic.shape[1] <= MAX_DIRECT:
-                exact = symbolic.xreplace(values).applyfunc(_exact_entry)
+                exact = symbolic.xreplace(values).applyfunc(_exactly_simplified)
                 return _direct(system, t_exact, q_exact, exact, on_poses(symbolic), values, allowed)
             exact = symbolic.xreplace(values).applyfunc(_entry)
             return _by_blocks(system, t_exact, q_exact, exact, symbolic, on_poses, values, allowed, every_block)
@@ -635,13 +623,13 @@ def _pose_substitution(system: System):
     return (lambda matrix: matrix.xreplace(substitution).applyfunc(sp.expand)), origins
 
 
-def _exact_entry(value: sp.Expr) -> sp.Expr:
-    """An entry of a small Phi_q at the configuration, simplified. The configuration's values are exact
-    (:func:`exact_number`), so the entry is an exact number already, and ``sin(8/25)`` stays itself:
-    SymPy's ``nsimplify``, applied to every entry before, turned such a number into a look-alike equal
-    to 15 digits (``sin(50847386919/5000000000000)`` into ``2821109907456*2**(4/7)*3**(1/14)*...``)
-    after up to 0.3 s of PSLQ. An entry with a float in it (none from kinegen's values) is still
-    given to ``nsimplify``."""
+def _exactly_simplified(value: sp.Expr) -> sp.Expr:
+    """A number computed from the configuration's exact values (:func:`exact_number`), simplified: a
+    small Phi_q's entry, a dual quaternion's stored dual part, a null space's coefficient. It is an
+    exact number already, and ``sin(8/25)`` stays itself: SymPy's ``nsimplify``, applied to these
+    before, turned such a number into a look-alike equal to 15 digits (``sin(50847386919/5000000000000)``
+    into ``2821109907456*2**(4/7)*3**(1/14)*...``) after up to 0.3 s of PSLQ. A value with a float in
+    it (none from kinegen's values) is still given to ``nsimplify``."""
     simplified = sp.simplify(value)
     return sp.nsimplify(simplified) if simplified.has(sp.Float) else simplified
 
