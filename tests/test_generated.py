@@ -54,17 +54,21 @@ def test_generation_does_not_depend_on_hash_seed():
     """The excavator (every kind of kernel: sensitivities, forces, supply, piecewise inputs), Python
     module and C, built under three ``PYTHONHASHSEED`` values at once: each gives the committed
     files' bytes (SymPy derives and prints, SymEngine differentiates and eliminates; neither may
-    let Python's string hashing order a term)."""
+    let Python's string hashing order a term). Each build forks: its sensitivity kernels are derived and
+    printed in a forked process, beside the description and the printing of the rest (this test's own
+    process, with threads, does not fork: the committed-module checks build there). The fourth build's
+    forked process prints only the C, so this one derives the sensitivity entries again for the Python."""
     code = (
-        "import hashlib, sys; from kinegen.codegen import writer; from kinegen.model import load; "
-        "from kinegen import rotations; "
+        "import hashlib, sys; from kinegen.codegen import backends, writer; from kinegen.model import load; "
+        "from kinegen import rotations; printers = backends.printers; "
+        "backends.printers = (lambda target: printers('c')) if sys.argv[2] == 'c-only' else printers; "
         "made = writer.generate(load(sys.argv[1]), rotations.get('quaternion')); "
         "print(*sorted(f'{n} {hashlib.sha256(t.encode()).hexdigest()}' for f in made.values() for n, t in f.items()), sep='\\n')"
     )
-    seeds = ("0", "1", "4242")
+    seeds = ("0", "1", "4242", "7")
     runs = [
-        subprocess.Popen([sys.executable, "-c", code, str(MODELS / "excavator.yaml")], env=dict(os.environ, PYTHONHASHSEED=seed),
-                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        subprocess.Popen([sys.executable, "-c", code, str(MODELS / "excavator.yaml"), "c-only" if seed == "7" else "all"],
+                         env=dict(os.environ, PYTHONHASHSEED=seed), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         for seed in seeds
     ]  # fmt: skip
     committed = "\n".join(
@@ -246,20 +250,20 @@ def test_a_failure_printing_in_the_forked_process_is_raised_here_and_nothing_is_
     from kinegen.codegen import shapes
 
     parent = os.getpid()
-    printed = shapes.Shapes._printed_texts
+    printed = shapes.Shapes.printed_texts
 
     def broken(self, work):
         if os.getpid() != parent:  # the forked child's share only
             raise ModelError("four_bar.yaml", "joints", "the printing failed on purpose")
         return printed(self, work)
 
-    monkeypatch.setattr(shapes.Shapes, "_printed_texts", broken)  # in the child too: it is forked from here
+    monkeypatch.setattr(shapes.Shapes, "printed_texts", broken)  # in the child too: it is forked from here
     monkeypatch.setattr(writer, "may_fork", lambda: True)
     with pytest.raises(ModelError, match="failed on purpose") as raised:
         build(MODELS / "four_bar.yaml", "quaternion", tmp_path, keep=False)  # (derived: not from kinegen's cache)
     assert raised.value.file == "four_bar.yaml" and raised.value.entry == "joints"
     assert list(tmp_path.iterdir()) == []
-    monkeypatch.setattr(shapes.Shapes, "_printed_texts", lambda self, work: os._exit(3))  # a child that dies
+    monkeypatch.setattr(shapes.Shapes, "printed_texts", lambda self, work: os._exit(3))  # a child that dies
     with pytest.raises(RuntimeError, match="exit code 3"):
         build(MODELS / "four_bar.yaml", "quaternion", tmp_path, keep=False)
     assert list(tmp_path.iterdir()) == []

@@ -22,12 +22,15 @@ print it; nothing here knows Python or C.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 import symengine as se
 import sympy as sp
+from sympy.printing.codeprinter import CodePrinter
 
 import kinegen
 from kinegen.codegen.intervals import IntervalProgram, interval_program
@@ -459,16 +462,118 @@ class _Sensitivities:
         return m_v, n_a
 
 
-def _entry_groups(rows: list[Row], entries: list[list[tuple[int, se.Basic]]], key: tuple, symbols: dict[str, sp.Symbol]) -> tuple[Group, ...]:
+class _Derived:
+    """The sensitivity kernels' entries derived in this process: :meth:`result` gives them (and no texts)."""
+
+    def __init__(self, entries: tuple) -> None:
+        self._entries = entries
+
+    def result(self) -> tuple:
+        return self._entries, {}, {}
+
+
+def _derive_sensitivities(derived: _Sensitivities, joints: list[Row], systems: dict[str, System], printers: tuple):
+    """The sensitivity kernels' entries (:func:`_sensitivity_entries`): an object whose ``result()``
+    gives (entries, texts, naming). Where this process may fork (:func:`kinegen.codegen.forked.may_fork`)
+    and ``printers`` are given, a forked process derives them, eliminates and prints their groups with
+    those printers (:func:`_printed_sensitivities`), and sends back the texts and each entry's column
+    alone; else they are derived here, their values in the entries, no texts. The same bytes either way:
+    each process derives and eliminates them by the same steps (SymEngine keeps no state between
+    expressions); only text travels (SymEngine's terms, unpickled, could come in another order)."""
+    from kinegen.codegen.forked import Child, may_fork
+
+    if printers and may_fork():
+        return Child(_printed_sensitivities, derived, joints, systems, printers)
+    return _Derived(_sensitivity_entries(derived, joints, systems))
+
+
+def _sensitivity_entries(derived: _Sensitivities, joints: list[Row], systems: dict[str, System]) -> tuple:
+    """(the joint rows' entries by kind, each case's driver rows' entries by kind, the entries'
+    symbols by name): per kind of :data:`SENSITIVITY_SECTIONS`, per row the (column, value) of
+    every entry not identically zero, the joint rows first, then each case's drivers in turn."""
+    joint = {"phi_p": derived.design_derivatives(joints)}
+    joint["dvel"], joint["dacc"] = derived.rows(joints)
+    drivers: dict[str, dict[str, list]] = {}
+    for name, system in systems.items():
+        rows = system.rows[len(joints) :]
+        drivers[name] = {"phi_p": derived.design_derivatives(rows)}
+        drivers[name]["dvel"], drivers[name]["dacc"] = derived.rows(rows)
+    return joint, drivers, derived.symbols
+
+
+def _printed_sensitivities(derived: _Sensitivities, joints: list[Row], systems: dict[str, System], printers: tuple) -> tuple:
+    """In the forked process: the entries derived, every group of theirs eliminated and printed by
+    ``printers`` (as :meth:`Shapes.prepare` would), and (the entries with their columns alone -- values
+    None --, the texts, their naming) sent back."""
+    entries = _sensitivity_entries(derived, joints, systems)
+    shapes = Shapes()
+    groups = [g for _, g, _ in _sensitivity_groups(entries, joints, systems)]
+    texts, naming = shapes.printed_texts([(group, list(printers)) for group in {g.key: g for gs in groups for g in gs}.values()])
+    joint, drivers, _ = entries
+    columns = ({k: _columns(v) for k, v in joint.items()}, {n: {k: _columns(v) for k, v in d.items()} for n, d in drivers.items()}, {})
+    return columns, texts, naming
+
+
+def _columns(entries: list[list[tuple[int, se.Basic]]]) -> list[list[tuple[int, None]]]:
+    """The entries' columns alone (values None)."""
+    return [[(c, None) for c, _ in row] for row in entries]
+
+
+def _sensitivity_groups(entries: tuple, joints: list[Row], systems: dict[str, System], derive=None):
+    """(section name, groups, entries) of every sensitivity section, in order: the joint rows' by kind,
+    then each case's drivers' by kind. ``derive``: where the entries hold only their columns, a function
+    giving the entries themselves (called only if a group's expressions are asked for in this process)."""
+    joint, drivers, symbols = entries
+    mj = len(joints)
+    out = []
+    for kind, _, _ in SENSITIVITY_SECTIONS:
+        whole = None if derive is None else (lambda kind=kind: derive()[0][kind])
+        out.append((f"joints_{kind}", _entry_groups(joints, joint[kind], (f"joints_{kind}",), symbols, whole), joint[kind]))
+    for name, system in systems.items():
+        for kind, _, _ in SENSITIVITY_SECTIONS:
+            whole = None if derive is None else (lambda name=name, kind=kind: derive()[1][name][kind])
+            own = drivers[name][kind]
+            out.append((f"drivers_{kind}_{name}", _entry_groups(system.rows[mj:], own, (f"drivers_{kind}",), symbols, whole), own))
+    return out
+
+
+def _sensitivity_sections(
+    entries: tuple, joints: list[Row], systems: dict[str, System], section, cases: dict[str, CaseDescription], derive=None
+) -> None:  # fmt: skip
+    """The sensitivity kernels' sections (``section``: the joint rows', then each case's drivers'), and
+    each case's kernels and patterns, from their ``entries`` (:func:`_sensitivity_entries`; ``derive``
+    as :func:`_sensitivity_groups` takes it)."""
+    slots = {kind: (slots_, doc) for kind, slots_, doc in SENSITIVITY_SECTIONS}
+    joint = entries[0]
+    for name, groups, own in _sensitivity_groups(entries, joints, systems, derive):
+        kind = next(k for k in slots if name in (f"joints_{k}", *(f"drivers_{k}_{c}" for c in cases)))
+        slots_, doc = slots[kind]
+        size = sum(map(len, own))
+        if name.startswith("joints_"):
+            section(name, (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), groups, size, f"{doc} of the joint rows ({size} entries).")
+            continue
+        case = name[len(f"drivers_{kind}_") :]
+        section(name, (*slots_, "p"), groups, size, f"{doc} of the driver rows of case {case!r}.")
+        entries_pattern = _pattern(joint[kind]) + _pattern(own, len(joints))
+        cases[case].patterns[kind] = (tuple(i for i, _ in entries_pattern), tuple(j for _, j in entries_pattern))
+        cases[case].kernels[kind] = Kernel(kind, (*slots_, "p"), (Output(kind, (f"joints_{kind}", name), len(entries_pattern)),),
+                                           f"{SENSITIVITY_KERNELS[kind]} of case {case!r}: values at {kind}_rows, {kind}_cols.")  # fmt: skip
+
+
+def _entry_groups(
+    rows: list[Row], entries: list[list[tuple[int, se.Basic]]], key: tuple, symbols: dict[str, sp.Symbol], derive=None
+) -> tuple[Group, ...]:  # fmt: skip
     """The entries of ``rows`` in groups of one joint, driver or normalization each (sharing
     their subexpressions), keyed ``key + (the rows' names and equations,)``: eliminated once for
-    every backend and every case."""
+    every backend and every case. ``derive``: where ``entries`` hold their columns alone (values None),
+    a function giving the entries themselves, called only when a group's expressions are asked for."""
     groups: list[Group] = []
     for start, end in _runs(rows):
-        values = [e for row in entries[start:end] for _, e in row]
-        if values:  # keyed by content: the same driver in several cases is eliminated and printed once
+        if any(entries[start:end]):  # keyed by content: the same driver in several cases is eliminated and printed once
             content = tuple((row.name, row.phi) for row in rows[start:end])
-            groups.append(Group((*key, content), lambda values=values: values, {}, symbols))
+            source = entries if derive is None else None
+            groups.append(Group((*key, content), lambda start=start, end=end, source=source: [
+                e for row in (derive() if source is None else source)[start:end] for _, e in row], {}, symbols))  # fmt: skip
     return tuple(groups)
 
 
@@ -672,7 +777,7 @@ def supply_expressions(model: Model, coords: Coordinates, forces: tuple[sp.Symbo
 
 def describe(
     model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None, sensitivities: bool = True,
-    forces: bool = True,
+    forces: bool = True, printers: tuple[CodePrinter, ...] = (), meanwhile: Callable[[ModuleDescription], None] | None = None,
 ) -> ModuleDescription:  # fmt: skip
     """The kernel description of ``model`` (every case) in ``parametrization``. A model with
     design parameters gets the sensitivity kernels (:data:`SENSITIVITY_KERNELS`, ``frames_d``,
@@ -680,7 +785,12 @@ def describe(
     (second derivatives of gamma), and a module that only solves designs does not need them.
     ``forces`` False leaves out the force solve's and the supply's kernels (``statics`` None, no
     ``supply``): the kinematics alone, as the in-memory path (:mod:`kinegen.codegen.inmemory`) evaluates
-    them (the excavator's description without sensitivities 0.44 -> 0.07 s, systems built)."""
+    them (the excavator's description without sensitivities 0.44 -> 0.07 s, systems built).
+    ``printers``: those that will print every section (the targets'); given, the sensitivity kernels'
+    entries are derived, eliminated and printed by them in a forked process while this one describes
+    the rest, where it may fork (:func:`_derive_sensitivities`): the same description and texts. Then
+    ``meanwhile(description)`` is called while that process works, on the description whose
+    sensitivity sections are still None (e.g. to print the other sections: :meth:`Shapes.prepare`)."""
     systems = systems or build_systems(model, parametrization)
     first = next(iter(systems.values()))
     coords = first.coordinates
@@ -707,16 +817,13 @@ def describe(
     section("joints_gamma", ("q", "v", *p), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
     design_symbols = tuple(d.symbol for d in model.design)
     sensitive = bool(model.design) and sensitivities
-    joint_sensitivity: dict[str, list] = {}
-    derived = _Sensitivities(coords, design_symbols) if sensitive else None
+    # the sensitivity kernels' entries (a third of the excavator's description) are derived beside the rest,
+    # in a forked process where this one may fork (_derive_sensitivities); their sections and kernels are
+    # filled in once they are back, at the places held for them here (a dict keeps a key's place)
+    pending = _derive_sensitivities(_Sensitivities(coords, design_symbols), joints, systems, printers) if sensitive else None
     if sensitive:  # the joint rows' parts of the sensitivity kernels, common to every case
-        joint_sensitivity["phi_p"] = derived.design_derivatives(joints)
-        joint_sensitivity["dvel"], joint_sensitivity["dacc"] = derived.rows(joints)
-        for kind, slots_, doc in SENSITIVITY_SECTIONS:
-            entries = joint_sensitivity[kind]
-            size = sum(map(len, entries))
-            section(f"joints_{kind}", (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), _entry_groups(joints, entries, (f"joints_{kind}",), derived.symbols),
-                    size, f"{doc} of the joint rows ({size} entries).")  # fmt: skip
+        for kind, _, _ in SENSITIVITY_SECTIONS:
+            sections[f"joints_{kind}"] = None
     shared_section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
         f"Per body {FRAME_VALUES} values, global: " + ", ".join(f"{name} ({count})" for name, count in FRAME_FIELDS)
@@ -782,18 +889,10 @@ def describe(
                                    "u, du/dt, d2u/dt2, then their upper bounds."),
         }  # fmt: skip
         patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {}
-        if sensitive:
-            driver_sensitivity = {"phi_p": derived.design_derivatives(drivers)}
-            driver_sensitivity["dvel"], driver_sensitivity["dacc"] = derived.rows(drivers)
-            for kind, slots_, doc in SENSITIVITY_SECTIONS:
-                entries = driver_sensitivity[kind]
-                size = sum(map(len, entries))
-                section(f"drivers_{kind}_{name}", (*slots_, "p"), _entry_groups(drivers, entries, (f"drivers_{kind}",), derived.symbols),
-                        size, f"{doc} of the driver rows of case {name!r}.")  # fmt: skip
-                entries_pattern = _pattern(joint_sensitivity[kind]) + _pattern(entries, mj)
-                patterns[kind] = (tuple(i for i, _ in entries_pattern), tuple(j for _, j in entries_pattern))
-                kernels[kind] = Kernel(kind, (*slots_, "p"), (Output(kind, (f"joints_{kind}", f"drivers_{kind}_{name}"), len(entries_pattern)),),
-                                       f"{SENSITIVITY_KERNELS[kind]} of case {name!r}: values at {kind}_rows, {kind}_cols.")  # fmt: skip
+        if sensitive:  # (filled in below)
+            for kind, _, _ in SENSITIVITY_SECTIONS:
+                sections[f"drivers_{kind}_{name}"] = None
+                kernels[kind] = None
         rows_, cols_ = tuple(i for i, _ in pattern), tuple(j for _, j in pattern)
         case = system.case
         cases[name] = CaseDescription(
@@ -827,7 +926,7 @@ def describe(
     definitions = Definitions(
         tuple((b.name, tuple(b.frame_symbols), tuple(b.frame_values)) for b in coords.bodies), tuple(generic_body(parametrization).frame_values)
     )
-    return ModuleDescription(
+    description = ModuleDescription(
         model=model.name,
         source=Path(model.file).name,
         sha256=model.source_sha256,
@@ -854,3 +953,21 @@ def describe(
         enclosures=enclosures,
         pumps=tuple(pump.name for pump in model.supply.pumps) if forces and model.supply is not None else (),
     )
+    if sensitive:
+        if meanwhile is not None and not isinstance(pending, _Derived):
+            meanwhile(description)  # (its sensitivity sections None: still being derived)
+        entries, texts, naming = pending.result()
+        derive = None
+        if texts:  # printed in the forked process: the values themselves only if another printer asks for them here
+            symbols: dict[str, sp.Symbol] = {}
+
+            @cache
+            def derive() -> tuple:
+                derived = _sensitivity_entries(_Sensitivities(coords, design_symbols), joints, systems)
+                symbols.update(derived[2])
+                return derived
+
+            entries = (*entries[:2], symbols)
+            description.shapes.adopt(texts, naming)
+        _sensitivity_sections(entries, joints, systems, section, cases, derive)
+    return description

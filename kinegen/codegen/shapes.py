@@ -247,10 +247,13 @@ class Shapes:
             return
         from kinegen.codegen.forked import Child
 
-        child = Child(self._printed_texts, work[1::2])
+        child = Child(self.printed_texts, work[1::2])
         for group, printers in work[0::2]:
             self._print(group, printers)
-        texts, naming = child.result()
+        self.adopt(*child.result())
+
+    def adopt(self, texts: dict, naming: dict) -> None:
+        """Texts and namings another process printed (:meth:`printed_texts`), kept as this one's."""
         self._texts.update(texts)
         for identity, value in naming.items():
             self._naming.setdefault(identity, value)
@@ -263,7 +266,7 @@ class Shapes:
         self._held[id(group)] = group
         return ("group", id(group))
 
-    def _printed_texts(self, work: list[tuple[Group, list[CodePrinter]]]) -> tuple[dict, dict]:
+    def printed_texts(self, work: list[tuple[Group, list[CodePrinter]]]) -> tuple[dict, dict]:
         """``work`` printed here: the texts and namings made for it (what a forked process sends back)."""
         before = set(self._texts)
         for group, printers in work:

@@ -39,12 +39,22 @@ def generate(
     :func:`kinegen.codegen.kernels.describe`).
 
     Every statement the targets print is eliminated and printed first, every other group in a
-    forked process when this process may fork (:func:`kinegen.codegen.forked.may_fork`): the
-    same texts, so the same bytes, as one process prints."""
-    description = describe(model, parametrization, sensitivities=sensitivities)
+    forked process when this process may fork (:func:`kinegen.codegen.forked.may_fork`), and the
+    sensitivity kernels derived and printed in another from the start of the description
+    (:func:`kinegen.codegen.kernels.describe`'s ``printers``): the same texts, so the same bytes,
+    as one process prints."""
+    # the sensitivity kernels are derived and printed in a forked process by the targets' printers while
+    # this one describes the rest and prints it (meanwhile), with one more forked process where it may fork
+    fork = may_fork()
+    printers = tuple(p for backend in _backends(targets) for p in backends.printers(backend)) if fork else ()
+
+    def meanwhile(partial: ModuleDescription) -> None:
+        partial.shapes.prepare([job for backend in _backends(targets, partial) for job in backends.jobs(backend, partial)], fork=fork)
+
+    description = describe(model, parametrization, sensitivities=sensitivities, printers=printers, meanwhile=meanwhile)
     stem = module_name(model, parametrization)
     files: dict[str, dict[str, str]] = {}
-    irregular = [name for name, case in description.cases.items() if case.plan is None]
+    irregular = _irregular(description)
     c_targets = [t for t in targets if t.startswith("c")]
     if irregular:  # the C solver factorizes a square, structurally regular Phi_q
         if "c" in c_targets:
@@ -57,8 +67,7 @@ def generate(
         files.update({target: {} for target in c_targets})  # generated/ holds no C for it: the runtime solves it in Python
         c_targets = []
     others = [t for t in targets if not t.startswith("c")]
-    backends_used = dict.fromkeys(["c"] * bool(c_targets) + others)
-    description.shapes.prepare([job for backend in backends_used for job in backends.jobs(backend, description)], fork=may_fork())
+    description.shapes.prepare([job for backend in _backends(targets, description) for job in backends.jobs(backend, description)], fork=fork)
     for target in [*c_targets, *others]:
         if target in c_targets:
             files[target] = _render_c(description, stem, target)
@@ -67,6 +76,18 @@ def generate(
         if ready is not None:
             ready(target, files[target])
     return {target: files[target] for target in targets}
+
+
+def _irregular(description: ModuleDescription) -> list[str]:
+    """The cases whose Phi_q is not square and structurally regular (no C for them)."""
+    return [name for name, case in description.cases.items() if case.plan is None]
+
+
+def _backends(targets: tuple[str, ...], description: ModuleDescription | None = None) -> list[str]:
+    """The backends that print ``targets`` ("c" for the C targets, unless ``description`` has a case
+    without C: :func:`_irregular`), in the order :func:`generate` prints them."""
+    with_c = any(t.startswith("c") for t in targets) and not (description is not None and _irregular(description))
+    return list(dict.fromkeys(["c"] * with_c + [t for t in targets if not t.startswith("c")]))
 
 
 def _render_c(description: ModuleDescription, stem: str, target: str) -> dict[str, str]:

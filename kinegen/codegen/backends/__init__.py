@@ -24,6 +24,14 @@ def get(target: str) -> Callable[[ModuleDescription, str], dict[str, str]]:
     return import_module(TARGETS[target]).render
 
 
+def printers(target: str) -> tuple:
+    """The printers the backend called ``target`` prints every section with (a section of the
+    plain-float kernels may have more: :func:`jobs` says)."""
+    if target not in TARGETS:
+        raise ValueError(f"unknown target {target!r} (targets: {', '.join(TARGETS)})")
+    return import_module(TARGETS[target]).printers()
+
+
 def jobs(target: str, description: ModuleDescription) -> list:
     """The (printer, group) pairs the backend called ``target`` prints for ``description``."""
     if target not in TARGETS:

@@ -1,6 +1,6 @@
 """The C backend: the model's kernels as C99 (``<stem>.h``/``<stem>.c``) and, as a standalone
 target, the runtime ``kinegen_solver.h/.c``, a Makefile, a CMakeLists.txt and example_main.c.
-(``jobs`` and ``render`` are imported when first read: the runtime reads :mod:`.config` alone.)"""
+(``jobs``, ``printers`` and ``render`` are imported when first read: the runtime reads :mod:`.config` alone.)"""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 from kinegen.lazy import exported
 
 if TYPE_CHECKING:
-    from kinegen.codegen.backends.c.backend import jobs, render
+    from kinegen.codegen.backends.c.backend import jobs, printers, render
 
-__getattr__ = exported(__name__, {"jobs": "kinegen.codegen.backends.c.backend", "render": "kinegen.codegen.backends.c.backend"})
+__getattr__ = exported(__name__, {name: "kinegen.codegen.backends.c.backend" for name in ("jobs", "printers", "render")})
 
 
-__all__ = ["jobs", "render"]
+__all__ = ["jobs", "printers", "render"]

@@ -515,10 +515,15 @@ def _renamed_call(line: str, renamed: dict[str, str]) -> str:
     return f"{renamed[name]}{paren}{rest}" if paren and name in renamed else line
 
 
+def printers() -> tuple[CodePrinter, ...]:
+    """The printer of every section."""
+    return (CPrinter(),)
+
+
 def jobs(description: ModuleDescription) -> list[tuple[CodePrinter, Group]]:
     """What the model's C prints, as (printer, group): every section."""
-    printer = CPrinter()
-    return [(printer, group) for section in description.sections.values() for group in section.groups]
+    (printer,) = printers()
+    return [(printer, group) for section in description.sections.values() if section is not None for group in section.groups]  # (None: see kernels.describe)
 
 
 def render(description: ModuleDescription, stem: str, standalone: bool = True) -> dict[str, str]:

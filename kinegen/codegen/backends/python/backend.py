@@ -38,11 +38,16 @@ def scalar_sections(description: ModuleDescription) -> set[str]:
             for output in case.kernels[name].outputs for part in output.parts if isinstance(part, str)}  # fmt: skip
 
 
+def printers() -> tuple[CodePrinter, ...]:
+    """The printers of every section: NumPy's (the scalar ones are also printed in ``math``: :func:`jobs`)."""
+    return PRINTERS[:1]
+
+
 def jobs(description: ModuleDescription) -> list[tuple[CodePrinter, Group]]:
     """What the module prints, as (printer, group): every section in NumPy, the scalar ones also in ``math``."""
     scalar = scalar_sections(description)
-    return [(printer, group) for name, section in description.sections.items() for group in section.groups
-            for printer in (PRINTERS if name in scalar else PRINTERS[:1])]  # fmt: skip
+    return [(printer, group) for name, section in description.sections.items() if section is not None for group in section.groups
+            for printer in (PRINTERS if name in scalar else printers())]  # fmt: skip (None: still being derived, see kernels.describe)
 
 
 @dataclass
