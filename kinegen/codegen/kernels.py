@@ -507,7 +507,7 @@ def _printed_sensitivities(derived: _Sensitivities, joints: list[Row], systems: 
     None --, the texts, their naming) sent back."""
     entries = _sensitivity_entries(derived, joints, systems)
     shapes = Shapes()
-    groups = [g for _, g, _ in _sensitivity_groups(entries, joints, systems)]
+    groups = [g for *_, g, _ in _sensitivity_groups(entries, joints, systems)]
     texts, naming = shapes.printed_texts([(group, list(printers)) for group in {g.key: g for gs in groups for g in gs}.values()])
     joint, drivers, _ = entries
     columns = ({k: _columns(v) for k, v in joint.items()}, {n: {k: _columns(v) for k, v in d.items()} for n, d in drivers.items()}, {})
@@ -520,20 +520,22 @@ def _columns(entries: list[list[tuple[int, se.Basic]]]) -> list[list[tuple[int, 
 
 
 def _sensitivity_groups(entries: tuple, joints: list[Row], systems: dict[str, System], derive=None):
-    """(section name, groups, entries) of every sensitivity section, in order: the joint rows' by kind,
-    then each case's drivers' by kind. ``derive``: where the entries hold only their columns, a function
-    giving the entries themselves (called only if a group's expressions are asked for in this process)."""
+    """(kind, case -- None for the joint rows --, section name, groups, that section's entries) of every
+    sensitivity section, in order: the joint rows' by kind, then each case's drivers' by kind.
+    ``derive``: where the entries hold only their columns, a function giving the entries themselves
+    (called only if a group's expressions are asked for in this process)."""
     joint, drivers, symbols = entries
     mj = len(joints)
     out = []
     for kind, _, _ in SENSITIVITY_SECTIONS:
         whole = None if derive is None else (lambda kind=kind: derive()[0][kind])
-        out.append((f"joints_{kind}", _entry_groups(joints, joint[kind], (f"joints_{kind}",), symbols, whole), joint[kind]))
-    for name, system in systems.items():
+        out.append((kind, None, f"joints_{kind}", _entry_groups(joints, joint[kind], (f"joints_{kind}",), symbols, whole), joint[kind]))
+    for case, system in systems.items():
         for kind, _, _ in SENSITIVITY_SECTIONS:
-            whole = None if derive is None else (lambda name=name, kind=kind: derive()[1][name][kind])
-            own = drivers[name][kind]
-            out.append((f"drivers_{kind}_{name}", _entry_groups(system.rows[mj:], own, (f"drivers_{kind}",), symbols, whole), own))
+            whole = None if derive is None else (lambda case=case, kind=kind: derive()[1][case][kind])
+            own = drivers[case][kind]
+            groups = _entry_groups(system.rows[mj:], own, (f"drivers_{kind}",), symbols, whole)
+            out.append((kind, case, f"drivers_{kind}_{case}", groups, own))
     return out
 
 
@@ -543,20 +545,18 @@ def _sensitivity_sections(
     """The sensitivity kernels' sections (``section``: the joint rows', then each case's drivers'), and
     each case's kernels and patterns, from their ``entries`` (:func:`_sensitivity_entries`; ``derive``
     as :func:`_sensitivity_groups` takes it)."""
-    slots = {kind: (slots_, doc) for kind, slots_, doc in SENSITIVITY_SECTIONS}
+    described = {kind: (slots, doc) for kind, slots, doc in SENSITIVITY_SECTIONS}
     joint = entries[0]
-    for name, groups, own in _sensitivity_groups(entries, joints, systems, derive):
-        kind = next(k for k in slots if name in (f"joints_{k}", *(f"drivers_{k}_{c}" for c in cases)))
-        slots_, doc = slots[kind]
+    for kind, case, name, groups, own in _sensitivity_groups(entries, joints, systems, derive):
+        slots, doc = described[kind]
         size = sum(map(len, own))
-        if name.startswith("joints_"):
-            section(name, (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), groups, size, f"{doc} of the joint rows ({size} entries).")
+        if case is None:
+            section(name, (*(s for s in slots if s not in ("u", "ud", "udd")), "p"), groups, size, f"{doc} of the joint rows ({size} entries).")
             continue
-        case = name[len(f"drivers_{kind}_") :]
-        section(name, (*slots_, "p"), groups, size, f"{doc} of the driver rows of case {case!r}.")
+        section(name, (*slots, "p"), groups, size, f"{doc} of the driver rows of case {case!r}.")
         entries_pattern = _pattern(joint[kind]) + _pattern(own, len(joints))
         cases[case].patterns[kind] = (tuple(i for i, _ in entries_pattern), tuple(j for _, j in entries_pattern))
-        cases[case].kernels[kind] = Kernel(kind, (*slots_, "p"), (Output(kind, (f"joints_{kind}", name), len(entries_pattern)),),
+        cases[case].kernels[kind] = Kernel(kind, (*slots, "p"), (Output(kind, (f"joints_{kind}", name), len(entries_pattern)),),
                                            f"{SENSITIVITY_KERNELS[kind]} of case {case!r}: values at {kind}_rows, {kind}_cols.")  # fmt: skip
 
 
