@@ -49,12 +49,11 @@ SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / 
 #: is built on the machine that runs it, so the solver may use that machine's instructions
 #: (-march=native: ~20 % faster here; with -std=c99 no floating-point contraction or
 #: reassociation is allowed, so the results are the same). The model's straight-line kernels
-#: compile at -Og: the excavator's first library 4.4-4.8 CPU-s at -O1 without the second scheduling
-#: pass, 2.6-2.8 at -Og, its compiled solves and force kernels the same to within the machine's noise
-#: (docs/performance.md; -O1 had been half the compile time of -O2). Both compile in parallel, then link.
+#: compile at -O1 without the second scheduling pass: half the compile time of -O2 for kernels
+#: ~10 % slower, a few percent of a step. Both compile in parallel, then link.
 COMMON_FLAGS = ("-std=c99", "-fPIC")
 SOLVER_FLAGS = ("-O2", "-march=native")
-MODEL_FLAGS = ("-Og",)
+MODEL_FLAGS = ("-O1", "-fno-schedule-insns2")
 PORTABLE = "-march=native"  # dropped where the compiler refuses it
 _WARNED: set[str] = set()
 
