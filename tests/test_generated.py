@@ -52,7 +52,7 @@ def test_committed_module_is_fresh(path):
 
 def test_generation_does_not_depend_on_hash_seed():
     """The excavator (every kind of kernel: sensitivities, forces, supply, piecewise inputs), Python
-    module and C, built under three ``PYTHONHASHSEED`` values at once: each gives the committed
+    module and C, built under four ``PYTHONHASHSEED`` values at once: each gives the committed
     files' bytes (SymPy derives and prints, SymEngine differentiates and eliminates; neither may
     let Python's string hashing order a term). Each build forks: its sensitivity kernels are derived and
     printed in a forked process, beside the description and the printing of the rest (this test's own

@@ -521,9 +521,10 @@ def printers() -> tuple[CodePrinter, ...]:
 
 
 def jobs(description: ModuleDescription) -> list[tuple[CodePrinter, Group]]:
-    """What the model's C prints, as (printer, group): every section."""
+    """What the model's C prints, as (printer, group): every section (a section still None is still being
+    derived: see kernels.describe's ``meanwhile``)."""
     (printer,) = printers()
-    return [(printer, group) for section in description.sections.values() if section is not None for group in section.groups]  # (None: see kernels.describe)
+    return [(printer, group) for section in description.sections.values() if section is not None for group in section.groups]
 
 
 def render(description: ModuleDescription, stem: str, standalone: bool = True) -> dict[str, str]:
