@@ -115,19 +115,46 @@ def test_failed_build_leaves_generated_folder_untouched(tmp_path):
     assert [p.name for p in out.iterdir()] == ["keep.py"]
 
 
-def test_half_the_statements_printed_in_a_forked_process_give_the_bytes_one_process_gives(monkeypatch):
-    """writer.generate where it may fork eliminates and prints every other group in a child process:
+def test_half_the_statements_printed_in_a_forked_process_give_the_bytes_one_process_gives(monkeypatch, tmp_path):
+    """writer.generate where it may fork eliminates and prints every other group in a child process,
+    and renders the Python module in one while it renders the C (the C files' digests put in after):
     the same bytes as one process gives, and ``ready`` still sees the C before the Python."""
-    made, seen = {}, {}
+    from kinegen.codegen.backends import python as python_backend
+
+    rendered_by = tmp_path / "pids"
+    render = python_backend.render
+
+    def recorded(description, stem):
+        with rendered_by.open("a") as out:
+            out.write(f"{os.getpid()}\n")
+        return render(description, stem)
+
+    monkeypatch.setattr(python_backend, "render", recorded)
+    made, seen, renderers = {}, {}, {}
     for fork in (False, True):
         monkeypatch.setattr(writer, "may_fork", lambda fork=fork: fork)
         seen[fork] = []
         made[fork] = writer.generate(model("four_bar"), rotations.get("quaternion"), ready=lambda target, files, fork=fork: seen[fork].append(target))
+        renderers[fork] = rendered_by.read_text().split()
+        rendered_by.unlink()
     assert made[True] == made[False]
     assert seen[True] == seen[False] == ["c-model", "python"]
+    assert renderers[False] == [str(os.getpid())] and len(renderers[True]) == 1 and renderers[True] != renderers[False]
     text = made[True]["python"]["four_bar_quaternion.py"]
     named = ast.literal_eval(re.search(r"^C_FILES = (.*)$", text, re.MULTILINE).group(1))
     assert named == {name: hashlib.sha256(text.encode()).hexdigest() for name, text in made[True]["c-model"].items()}
+
+
+def test_the_python_modules_place_for_the_c_digests_is_filled_once_or_refused():
+    """Where the Python module is rendered before the model's C (in a forked process), its C_FILES holds a
+    token for the digests: filled with their literal as the template prints it, and a text holding the
+    token not exactly once is refused (a digest put in the wrong place would name other C)."""
+    pending = writer._PendingDigests
+    digests = {"m.h": "a" * 64, "m.c": "b" * 64}
+    assert pending.filled(f"X = 1\nC_FILES = {pending()!r}\n", digests) == f"X = 1\nC_FILES = {digests!r}\n"
+    for text in ("C_FILES = {}\n", f"C_FILES = {pending()!r}  # {pending()!r}\n"):
+        with pytest.raises(RuntimeError, match="not one"):
+            pending.filled(text, digests)
 
 
 def test_compiled_templates_are_kept_in_the_cache_and_give_the_same_bytes(tmp_path, monkeypatch):

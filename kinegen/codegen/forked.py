@@ -6,6 +6,7 @@ copy of this process (its description, its caches), so only the result travels.
 
 from __future__ import annotations
 
+import gc
 import multiprocessing
 import threading
 from collections.abc import Callable
@@ -48,7 +49,10 @@ class Child:
 
 
 def _run(function: Callable[..., Any], args: tuple, sending) -> None:
-    """In the child: send ("result", value) or ("error", (class, args, attributes))."""
+    """In the child: send ("result", value) or ("error", (class, args, attributes)). The objects the
+    child was forked with are never collected here (``gc.freeze``): a collection would touch every one
+    of them, copying the parent's memory page by page."""
+    gc.freeze()
     try:
         sending.send(("result", function(*args)))
     except BaseException as exc:  # every failure goes back to the parent, as its class, args and attributes

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import kinegen.codegen.backends as backends
 import kinegen.codegen.kept as kept
 from kinegen.codegen.forked import may_fork
 from kinegen.codegen.kernels import ModuleDescription, describe
+from kinegen.codegen.templates import python_literal
 from kinegen.errors import ModelError
 from kinegen.files import write_atomic
 from kinegen.integrity import digest, expected, expected_key, locked, remember, remember_expected
@@ -68,14 +69,48 @@ def generate(
         c_targets = []
     others = [t for t in targets if not t.startswith("c")]
     description.shapes.prepare([job for backend in _backends(targets, description) for job in backends.jobs(backend, description)], fork=fork)
-    for target in [*c_targets, *others]:
-        if target in c_targets:
-            files[target] = _render_c(description, stem, target)
-        else:
-            files[target] = backends.get(target)(description, stem)
+    for target, made in _rendered(description, stem, c_targets, others, fork):
+        files[target] = made
         if ready is not None:
-            ready(target, files[target])
+            ready(target, made)
     return {target: files[target] for target in targets}
+
+
+def _rendered(description: ModuleDescription, stem: str, c_targets: list[str], others: list[str], fork: bool) -> Iterator[tuple[str, dict[str, str]]]:
+    """(target, its files) of every target, the C ones first: the Python module names the model's C by
+    its digests (:func:`_render_c`). Where this process may fork and the model's C and the Python module
+    are both made, the Python is rendered in a forked process while this one renders the C (what the
+    runtime's compile waits for), its digests then put in at the place the Python holds for them
+    (:class:`_PendingDigests`): the same text."""
+    if fork and c_targets == ["c-model"] and others == ["python"] and may_fork():
+        from kinegen.codegen.forked import Child
+
+        pending, description.c_files = description.c_files, _PendingDigests()
+        child = Child(backends.get("python"), description, stem)
+        description.c_files = pending
+        c_files = _render_c(description, stem, "c-model")
+        yield "c-model", c_files
+        yield "python", {name: _PendingDigests.filled(text, description.c_files) for name, text in child.result().items()}
+        return
+    for target in [*c_targets, *others]:
+        yield target, _render_c(description, stem, target) if target in c_targets else backends.get(target)(description, stem)
+
+
+class _PendingDigests(dict):
+    """``description.c_files`` where the Python module is rendered before the model's C: empty, and
+    printed (``repr``) as a token that :meth:`filled` replaces with the digests' own literal."""
+
+    TOKEN = "__kinegen_c_files_still_being_rendered__"
+
+    def __repr__(self) -> str:
+        return self.TOKEN
+
+    @classmethod
+    def filled(cls, text: str, c_files: dict[str, str]) -> str:
+        """``text`` with its one token replaced by ``c_files``' literal (as the template prints it)."""
+        if text.count(cls.TOKEN) != 1:
+            raise RuntimeError(f"the Python module holds {text.count(cls.TOKEN)} places for its C files' digests, not one")
+        return text.replace(cls.TOKEN, python_literal(c_files))
 
 
 def _irregular(description: ModuleDescription) -> list[str]:
