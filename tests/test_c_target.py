@@ -723,15 +723,53 @@ def test_the_library_cache_key_covers_the_compiler(tmp_path, monkeypatch):
 def test_the_solver_object_is_compiled_once_for_every_model(tmp_path, monkeypatch):
     """Two models' libraries in an empty cache: the solver's object once, then one object per model (a
     model split into parts has one per part: test_the_sensitivity_kernels_compile_when_first_asked_for
-    counts the excavator's -- two small models here, not a third excavator compile)."""
+    counts the excavator's -- two small models here, not a third excavator compile). The solver's object
+    is started as a build starts it (native.start_solver_object): a compiler process and no thread, so
+    this process may still fork while it compiles; the library built meanwhile in this process finishes
+    it first (it holds the object's lock)."""
+    import threading
+
+    from kinegen.codegen.forked import may_fork
+    from kinegen.runtime import native
+
     monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
     objects = tmp_path / "cache" / "objects"
     files = _model_files("four_bar_quaternion")
     assert not config.source_parts(files["four_bar_quaternion.c"])  # compiled whole
+    threads = threading.active_count()
+    finish = native.start_solver_object()
+    (started,) = native._STARTED.values()
+    assert started._process.poll() is None and threading.active_count() == threads and (threads > 1 or may_fork())
     build_library(with_solver(files))
+    assert started._process.returncode == 0 and not native._STARTED and not list(objects.glob("tmp*"))
     assert len(list(objects.glob("*.o"))) == 2  # the solver and the model
+    finish()  # (finished already: nothing)
+    assert native.start_solver_object()() is None and not native._STARTED  # cached: nothing started
     build_library(with_solver(_model_files("boom_quaternion")))
     assert len(list(objects.glob("*.o"))) == 3  # the boom's one object; the solver's reused
+
+
+def test_a_solver_compile_never_finished_is_stopped_and_leaves_nothing(tmp_path, monkeypatch):
+    """What native.start_solver_object started and nobody finished (a build that failed before its
+    model's C) is stopped when it is dropped: the compiler killed, no object cached, its folder gone and
+    the object's lock free again."""
+    import fcntl
+    import gc
+
+    from kinegen.runtime import native
+
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    objects = tmp_path / "cache" / "objects"
+    finish = native.start_solver_object()
+    (started,) = native._STARTED.values()
+    process, locks = started._process, list((objects / "locks").iterdir())
+    assert process.poll() is None and list(objects.glob("tmp*")) and len(locks) == 1
+    del finish, started
+    gc.collect()
+    assert process.returncode is not None and process.returncode < 0  # killed
+    assert not native._STARTED and not list(objects.glob("*.o")) and not list(objects.glob("tmp*"))
+    with locks[0].open("a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (free: a held lock raises BlockingIOError)
 
 
 def test_the_sensitivity_kernels_compile_when_first_asked_for(tmp_path, monkeypatch):

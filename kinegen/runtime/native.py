@@ -191,6 +191,10 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivi
                 missing.append((name, part, command, objects[-1]))
     if not missing:
         return objects
+    for _, _, _, cached in missing:  # this process's own compiler of it (start_solver_object) holds its lock: finished first
+        started = _STARTED.get(cached)
+        if started is not None:
+            started.finish()
     with _compiling(store, [cached for _, _, _, cached in missing]):
         missing = [m for m in missing if not _intact(m[3])]  # compiled by another process while this one waited
         if missing:
@@ -270,12 +274,15 @@ def with_solver(model_files: dict[str, str]) -> dict[str, str]:
     return {**model_files, **{name: (SOLVER_SOURCES / name).read_text() for name in RUNTIME}}
 
 
-def compile_in_background(model_files: dict[str, str]) -> threading.Thread:
+def compile_in_background(model_files: dict[str, str], first: Callable[[], None] | None = None) -> threading.Thread:
     """Start building the library of a model's C (cached, see :func:`build_library`) in a thread,
-    so that it compiles while other work goes on; a failure is left for the first use to report."""
+    so that it compiles while other work goes on; ``first`` is called in the thread before (e.g. what
+    :func:`start_solver_object` returned). A failure is left for the first use to report."""
 
     def build() -> None:
         try:
+            if first is not None:
+                first()
             case_library(with_solver(model_files))
         except (KinegenError, OSError):  # left for the first use to report
             pass
@@ -285,19 +292,84 @@ def compile_in_background(model_files: dict[str, str]) -> threading.Thread:
     return thread
 
 
-def compile_solver_in_background() -> threading.Thread:
-    """Start compiling kinegen's C solver object (:func:`build_solver_object`, cached) in a thread: a
-    build starts it first, so that it compiles while the model is loaded and derived (one core is idle
-    then) rather than beside the model's C; a library that needs it meanwhile waits for it (the
-    object's lock). A failure is left for the first use to report."""
+def start_solver_object() -> Callable[[], None]:
+    """Start compiling kinegen's C solver object (:func:`build_solver_object`, cached) if the cache
+    lacks it, as a compiler process and no thread: a build starts it first, so that it compiles while
+    the model is loaded and derived, and this process may still fork for that (a thread would forbid
+    it: :func:`kinegen.codegen.forked.may_fork`). Returns what finishes it -- waits for the compiler,
+    moves the object into the cache -- called before the model's library is built (a process that
+    needs the object meanwhile waits on its lock); a compile never finished is stopped when this
+    process exits. A failure is left for the first use to report."""
+    try:
+        compiler = c_compiler()
+        sources = with_solver({})
+        name = "kinegen_solver.c"
+        command = [*COMMON_FLAGS, *SOLVER_FLAGS]
+        store = cache_folder() / "objects"
+        store.mkdir(parents=True, exist_ok=True)
+        cached = store / f"{_object_key(_compiler_identity(compiler), command, name, sources)}.o"
+        if _intact(cached):
+            return lambda: None
+        return _Started(compiler, store, sources, name, command, cached).finish
+    except (KinegenError, OSError):
+        return lambda: None
 
-    def build() -> None:
-        with suppress(KinegenError, OSError):
-            build_solver_object()
 
-    thread = threading.Thread(target=build, name="kinegen-compile-solver", daemon=True)
-    thread.start()
-    return thread
+class _Started:
+    """One object's compiler process, started by :func:`start_solver_object` with the object's lock held
+    (:func:`_compiling`) and its sources in a private folder; :meth:`finish` waits for it, moves the object
+    into the cache (a refused -march=native compiled again without it, as :func:`_run_all` does) and lets
+    the lock and the folder go. Stopped at this process's exit if never finished."""
+
+    def __init__(self, compiler: str, store: Path, sources: dict[str, str], name: str, command: list[str], cached: Path) -> None:
+        self._lock = threading.Lock()
+        self._held = ExitStack()
+        self._held.enter_context(_compiling(store, [cached]))
+        self._cached = cached
+        self._process: subprocess.Popen | None = None
+        if _intact(cached):  # (compiled by another process while this one waited for the lock)
+            self._finalizer = weakref.finalize(self, self._held.close)
+            return
+        self._work = self._held.enter_context(_work_folder(store))
+        for file, text in sources.items():
+            (self._work / file).write_text(text)
+        self._made = self._work / f"{Path(name).stem}.o"
+        self._command = [compiler, *command, "-c", "-o", str(self._made), str(self._work / name)]
+        self._process = subprocess.Popen(self._command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        self._finalizer = weakref.finalize(self, _stopped, self._process, self._held)
+        _STARTED[cached] = self  # (this process's own use of the object finishes it first: _objects)
+
+    def finish(self) -> None:
+        """Wait for the compiler and move the object in (once; a failure is left for the first use)."""
+        with self._lock:
+            if self._finalizer.detach() is not None:
+                if _STARTED.get(self._cached) is self:
+                    del _STARTED[self._cached]
+                self._finished()
+
+    def _finished(self) -> None:
+        try:
+            if self._process is not None:
+                self._process.communicate()
+                if self._process.returncode != 0:
+                    _run_all(self._command[0], [self._command])  # (again, for -march=native's refusal or the error)
+                _publish(self._made, self._cached)
+        except (KinegenError, OSError):
+            pass
+        finally:
+            self._held.close()
+
+
+#: the objects this process has a compiler process of :func:`start_solver_object` for, not finished yet
+_STARTED: weakref.WeakValueDictionary[Path, _Started] = weakref.WeakValueDictionary()
+
+
+def _stopped(process: subprocess.Popen, held: ExitStack) -> None:
+    """A compile never finished, at this process's exit: the compiler stopped, its folder and lock let go."""
+    with suppress(OSError):
+        process.kill()
+        process.wait()
+    held.close()
 
 
 def _run_all(compiler: str, commands: list[list[str]]) -> None:

@@ -45,10 +45,11 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
     def check(source: str, model: str) -> None:
         checks.extend(check_source(source, model))
 
+    solver_object = None
     if target != "c" and compile_library:  # kinegen's C solver does not depend on the model: compiled (once, cached) while the model is derived
-        from kinegen.runtime.native import compile_solver_in_background
+        from kinegen.runtime.native import start_solver_object
 
-        compile_solver_in_background()
+        solver_object = start_solver_object()
     model = load(model_file)
     stem = module_name(model, get(parametrization))
     if target == "c":
@@ -61,12 +62,14 @@ def build(model_file: str | Path, parametrization: str, target: str = "python", 
         if made == "c-model" and compile_library:
             from kinegen.runtime.native import compile_in_background
 
-            compiling.append(compile_in_background(files))
+            compiling.append(compile_in_background(files, first=solver_object))
 
     path = build_module(model_file, parametrization, out_dir or "generated", check=check, ready=ready, sensitivities=sensitivities,
                         model=model, keep=reuse)  # fmt: skip
     for thread in compiling:
         thread.join()
+    if solver_object is not None:  # (a model without C: the solver's object is still cached for later)
+        solver_object()
     return BuildReport(path, parametrization, time.perf_counter() - start, checks)
 
 
