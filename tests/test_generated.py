@@ -296,6 +296,33 @@ def test_a_failure_printing_in_the_forked_process_is_raised_here_and_nothing_is_
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_forked_child_whose_result_nobody_asks_for_is_stopped(tmp_path, monkeypatch):
+    """The Python module renders in a forked process while this one renders the C: when the C fails,
+    the error is raised here, nothing is written, and that process (its answer never read) is ended,
+    not left blocked on its pipe until this process exits; so is any child dropped unanswered."""
+    import gc
+    import multiprocessing
+    import time
+
+    from kinegen.codegen.forked import Child
+
+    def broken(description, stem, target):
+        raise ModelError("four_bar.yaml", "joints", "the C failed on purpose")
+
+    monkeypatch.setattr(writer, "may_fork", lambda: True)
+    monkeypatch.setattr(writer, "_render_c", broken)
+    with pytest.raises(ModelError, match="C failed on purpose"):
+        build(MODELS / "four_bar.yaml", "quaternion", tmp_path, keep=False)
+    gc.collect()
+    assert list(tmp_path.iterdir()) == [] and multiprocessing.active_children() == []
+    child = Child(time.sleep, 60)
+    process = child._process
+    assert process.is_alive()
+    del child
+    gc.collect()
+    assert not process.is_alive() and process.exitcode is not None and process.exitcode < 0  # terminated
+
+
 def test_stale_module_is_refused_with_rebuild_hint(tmp_path):
     path = build(MODELS / "boom.yaml", "quaternion", tmp_path)
     edited = tmp_path / "boom.yaml"

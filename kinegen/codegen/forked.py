@@ -9,6 +9,7 @@ from __future__ import annotations
 import gc
 import multiprocessing
 import threading
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -23,7 +24,8 @@ def may_fork() -> bool:
 
 class Child:
     """``function(*args)`` started in a forked child process (see :func:`may_fork`); :meth:`result`
-    waits for it."""
+    waits for it. A child whose result is never asked for (the parent's work failed meanwhile) is
+    stopped when it is dropped: it would otherwise wait, blocked on its answer, for this process's end."""
 
     def __init__(self, function: Callable[..., Any], *args: Any) -> None:
         context = multiprocessing.get_context("fork")
@@ -31,10 +33,12 @@ class Child:
         self._process = context.Process(target=_run, args=(function, args, sending), name="kinegen-child", daemon=True)
         self._process.start()
         sending.close()
+        self._stop = weakref.finalize(self, _stop, self._process, self._receiving)
 
     def result(self) -> Any:
         """What the function returned; the exception it raised is raised here (its class, args and
         attributes), and a child that ended without an answer is a RuntimeError naming its exit code."""
+        self._stop.detach()
         try:
             outcome, value = self._receiving.recv()
         except EOFError:
@@ -46,6 +50,13 @@ class Child:
         if outcome == "error":
             raise _exception(*value)
         return value
+
+
+def _stop(process: multiprocessing.Process, receiving) -> None:
+    """A child nobody waits for: ended, and its pipe closed."""
+    process.terminate()
+    process.join()
+    receiving.close()
 
 
 def _run(function: Callable[..., Any], args: tuple, sending) -> None:
