@@ -18,8 +18,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 5 groups, each under its KINEGEN_PART value
- * (1 to 5; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 4 groups, each under its KINEGEN_PART value
+ * (1 to 4; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
 void excavator_dual_quaternion_compute_joints_phi(const double *q, const double *p, double *out);
 void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
@@ -42,46 +42,18 @@ void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, con
 void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_level_cut(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_level_cut(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_trench_wall(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_trench_wall(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_bucket_toggle(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_bucket_toggle(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_bucket_stroke(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_bucket_stroke(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_bucket_near_toggle(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_bucket_near_toggle(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_digging_fast(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_digging_fast(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *span, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_oscillation(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_oscillation(const double *span, double *out);
 void excavator_dual_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
@@ -461,7 +433,7 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, const double 
     out[79] = c17*side_link_a20 - c16*side_link_a22 - side_link_oz + bucket_cyl_rod_oz;
 }
 
-/* Phi of the driver rows of case 'digging'. */
+/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
 void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -1619,7 +1591,7 @@ void excavator_dual_quaternion_compute_joints_jac_part3(const double *q, const d
     out[426] = -1.0;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. */
+/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
 void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -1746,7 +1718,7 @@ void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, cons
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. */
+/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
 void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -2936,7 +2908,7 @@ void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const
     out[79] = c696*c706 + c701*c707 - c702*c708 - c705*c709;
 }
 
-/* gamma of the driver rows of case 'digging'. */
+/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
 void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -3317,7 +3289,7 @@ void excavator_dual_quaternion_compute_input_ranges_digging(const double *span, 
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. */
+/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
 void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -3347,7 +3319,7 @@ void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, co
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. */
+/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
 void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -3385,7 +3357,7 @@ void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, co
     out[11] = c4*bucket_a12;
 }
 
-/* nu of the driver rows of case 'level_cut'. */
+/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
 void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -3409,7 +3381,7 @@ void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, con
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. */
+/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
 void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -3544,152 +3516,6 @@ void excavator_dual_quaternion_compute_input_ranges_level_cut(const double *span
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double bucket_rw = q[104];
-    const double bucket_rx = q[105];
-    const double bucket_ry = q[106];
-    const double bucket_rz = q[107];
-    const double bucket_dw = q[108];
-    const double bucket_dx = q[109];
-    const double bucket_dy = q[110];
-    const double bucket_dz = q[111];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double bucket_ox = -2.0*bucket_dw*bucket_rx - 2.0*bucket_dy*bucket_rz + 2.0*bucket_dx*bucket_rw + 2.0*bucket_dz*bucket_ry;
-    const double bucket_oz = -2.0*bucket_dw*bucket_rz - 2.0*bucket_dx*bucket_ry + 2.0*bucket_dy*bucket_rx + 2.0*bucket_dz*bucket_rw;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
-    const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (403.0/500.0)*bucket_a02 + (32.0/25.0)*bucket_a00 - u1 + bucket_ox;
-    out[2] = (403.0/500.0)*bucket_a22 + (32.0/25.0)*bucket_a20 - u2 + bucket_oz;
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
-}
-
-/* Phi_q values of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double bucket_rw = q[104];
-    const double bucket_rx = q[105];
-    const double bucket_ry = q[106];
-    const double bucket_rz = q[107];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
-    const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry;
-    const double bucket_a12 = -2.0*bucket_rw*bucket_rx + 2.0*bucket_ry*bucket_rz;
-    const double bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = sin(u3);
-    const double c4 = cos(u3);
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = (403.0/500.0)*bucket_a22 + (32.0/25.0)*bucket_a20;
-    out[4] = -32.0/25.0*bucket_a10 - 403.0/500.0*bucket_a12;
-    out[5] = 1.0;
-    out[6] = (403.0/500.0)*bucket_a12 + (32.0/25.0)*bucket_a10;
-    out[7] = -32.0/25.0*bucket_a00 - 403.0/500.0*bucket_a02;
-    out[8] = 1.0;
-    out[9] = c3*bucket_a12;
-    out[10] = -c4*bucket_a22 - c3*bucket_a02;
-    out[11] = c4*bucket_a12;
-}
-
-/* nu of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double bucket_rw = q[104];
-    const double bucket_rx = q[105];
-    const double bucket_ry = q[106];
-    const double bucket_rz = q[107];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
-}
-
-/* gamma of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double bucket_rw = q[104];
-    const double bucket_rx = q[105];
-    const double bucket_ry = q[106];
-    const double bucket_rz = q[107];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_bucket_wx = v[78];
-    const double v_bucket_wy = v[79];
-    const double v_bucket_wz = v[80];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud3 = ud[3];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
-    const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry;
-    const double bucket_a12 = -2.0*bucket_rw*bucket_rx + 2.0*bucket_ry*bucket_rz;
-    const double bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = sin(u3);
-    const double c12 = cos(u3);
-    const double c13 = c12*bucket_a02;
-    const double c14 = c11*bucket_a22;
-    const double c15 = bucket_a12*v_bucket_wx;
-    const double c16 = bucket_a12*v_bucket_wz;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = (403.0/500.0)*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz)*v_bucket_wz + (32.0/25.0)*(-bucket_a20*v_bucket_wx + bucket_a00*v_bucket_wz)*v_bucket_wz - 32.0/25.0*(-bucket_a00*v_bucket_wy + bucket_a10*v_bucket_wx)*v_bucket_wy - 403.0/500.0*(-bucket_a02*v_bucket_wy + bucket_a12*v_bucket_wx)*v_bucket_wy + udd1;
-    out[2] = (32.0/25.0)*(-bucket_a10*v_bucket_wz + bucket_a20*v_bucket_wy)*v_bucket_wy - 32.0/25.0*(-bucket_a20*v_bucket_wx + bucket_a00*v_bucket_wz)*v_bucket_wx - 403.0/500.0*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz)*v_bucket_wx + (403.0/500.0)*(-bucket_a12*v_bucket_wz + bucket_a22*v_bucket_wy)*v_bucket_wy + udd2;
-    out[3] = c11*(-c16 + bucket_a22*v_bucket_wy)*v_bucket_wy + c12*(-bucket_a02*v_bucket_wy + c15)*v_bucket_wy - (c12*v_bucket_wz + c11*v_bucket_wx)*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz) - 2.0*ud3*(-c11*c16 + c12*c15 + (-c13 + c14)*v_bucket_wy) - (-c14 + c13)*(ud3*ud3) - (c12*bucket_a22 + c11*bucket_a02)*udd3;
-}
-
 /* Driver inputs of case 'trench_wall' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_dual_quaternion_compute_inputs_trench_wall(double t, double *out) {
     const double c0 = pow(t, 3.0);
@@ -3771,407 +3597,6 @@ void excavator_dual_quaternion_compute_input_ranges_trench_wall(const double *sp
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
-    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
-    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
-    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
-    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
-    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[6] = -boom_cyl_l_barrel_a00;
-    out[7] = -boom_cyl_l_barrel_a10;
-    out[8] = -boom_cyl_l_barrel_a20;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[15] = -arm_cyl_barrel_a00;
-    out[16] = -arm_cyl_barrel_a10;
-    out[17] = -arm_cyl_barrel_a20;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[24] = -bucket_cyl_barrel_a00;
-    out[25] = -bucket_cyl_barrel_a10;
-    out[26] = -bucket_cyl_barrel_a20;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
-
-/* gamma of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_boom_cyl_l_barrel_wx = v[12];
-    const double v_boom_cyl_l_barrel_wy = v[13];
-    const double v_boom_cyl_l_barrel_wz = v[14];
-    const double v_boom_cyl_l_barrel_vx = v[15];
-    const double v_boom_cyl_l_barrel_vy = v[16];
-    const double v_boom_cyl_l_barrel_vz = v[17];
-    const double v_boom_cyl_l_rod_vx = v[21];
-    const double v_boom_cyl_l_rod_vy = v[22];
-    const double v_boom_cyl_l_rod_vz = v[23];
-    const double v_arm_cyl_barrel_wx = v[42];
-    const double v_arm_cyl_barrel_wy = v[43];
-    const double v_arm_cyl_barrel_wz = v[44];
-    const double v_arm_cyl_barrel_vx = v[45];
-    const double v_arm_cyl_barrel_vy = v[46];
-    const double v_arm_cyl_barrel_vz = v[47];
-    const double v_arm_cyl_rod_vx = v[51];
-    const double v_arm_cyl_rod_vy = v[52];
-    const double v_arm_cyl_rod_vz = v[53];
-    const double v_bucket_cyl_barrel_wx = v[54];
-    const double v_bucket_cyl_barrel_wy = v[55];
-    const double v_bucket_cyl_barrel_wz = v[56];
-    const double v_bucket_cyl_barrel_vx = v[57];
-    const double v_bucket_cyl_barrel_vy = v[58];
-    const double v_bucket_cyl_barrel_vz = v[59];
-    const double v_bucket_cyl_rod_vx = v[63];
-    const double v_bucket_cyl_rod_vy = v[64];
-    const double v_bucket_cyl_rod_vz = v[65];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
-    const double c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz;
-    const double c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy;
-    const double c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
-    const double c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz;
-    const double c17 = -c15 + c16;
-    const double c18 = -c12 + c11;
-    const double c19 = -c13 + c14;
-    const double c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
-    const double c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz;
-    const double c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy;
-    const double c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
-    const double c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz;
-    const double c26 = -c24 + c25;
-    const double c27 = -c21 + c20;
-    const double c28 = -c22 + c23;
-    const double c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
-    const double c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz;
-    const double c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy;
-    const double c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
-    const double c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz;
-    const double c35 = -c33 + c34;
-    const double c36 = -c30 + c29;
-    const double c37 = -c31 + c32;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1;
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
-}
-
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_dual_quaternion_compute_inputs_bucket_toggle(double t, double *out) {
     out[0] = 0.0;
@@ -4224,403 +3649,6 @@ void excavator_dual_quaternion_compute_input_ranges_bucket_toggle(const double *
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_stroke'. */
-void excavator_dual_quaternion_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_stroke'. */
-void excavator_dual_quaternion_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
-    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
-    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
-    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
-    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
-    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[6] = -boom_cyl_l_barrel_a00;
-    out[7] = -boom_cyl_l_barrel_a10;
-    out[8] = -boom_cyl_l_barrel_a20;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[15] = -arm_cyl_barrel_a00;
-    out[16] = -arm_cyl_barrel_a10;
-    out[17] = -arm_cyl_barrel_a20;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[24] = -bucket_cyl_barrel_a00;
-    out[25] = -bucket_cyl_barrel_a10;
-    out[26] = -bucket_cyl_barrel_a20;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_stroke'. */
-void excavator_dual_quaternion_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_stroke'. */
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_boom_cyl_l_barrel_wx = v[12];
-    const double v_boom_cyl_l_barrel_wy = v[13];
-    const double v_boom_cyl_l_barrel_wz = v[14];
-    const double v_boom_cyl_l_barrel_vx = v[15];
-    const double v_boom_cyl_l_barrel_vy = v[16];
-    const double v_boom_cyl_l_barrel_vz = v[17];
-    const double v_boom_cyl_l_rod_vx = v[21];
-    const double v_boom_cyl_l_rod_vy = v[22];
-    const double v_boom_cyl_l_rod_vz = v[23];
-    const double v_arm_cyl_barrel_wx = v[42];
-    const double v_arm_cyl_barrel_wy = v[43];
-    const double v_arm_cyl_barrel_wz = v[44];
-    const double v_arm_cyl_barrel_vx = v[45];
-    const double v_arm_cyl_barrel_vy = v[46];
-    const double v_arm_cyl_barrel_vz = v[47];
-    const double v_arm_cyl_rod_vx = v[51];
-    const double v_arm_cyl_rod_vy = v[52];
-    const double v_arm_cyl_rod_vz = v[53];
-    const double v_bucket_cyl_barrel_wx = v[54];
-    const double v_bucket_cyl_barrel_wy = v[55];
-    const double v_bucket_cyl_barrel_wz = v[56];
-    const double v_bucket_cyl_barrel_vx = v[57];
-    const double v_bucket_cyl_barrel_vy = v[58];
-    const double v_bucket_cyl_barrel_vz = v[59];
-    const double v_bucket_cyl_rod_vx = v[63];
-    const double v_bucket_cyl_rod_vy = v[64];
-    const double v_bucket_cyl_rod_vz = v[65];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
-    const double c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz;
-    const double c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy;
-    const double c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
-    const double c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz;
-    const double c17 = -c15 + c16;
-    const double c18 = -c12 + c11;
-    const double c19 = -c13 + c14;
-    const double c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
-    const double c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz;
-    const double c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy;
-    const double c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
-    const double c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz;
-    const double c26 = -c24 + c25;
-    const double c27 = -c21 + c20;
-    const double c28 = -c22 + c23;
-    const double c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
-    const double c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz;
-    const double c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy;
-    const double c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
-    const double c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz;
-    const double c35 = -c33 + c34;
-    const double c36 = -c30 + c29;
-    const double c37 = -c31 + c32;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1;
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
-}
-
 /* Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_dual_quaternion_compute_inputs_bucket_stroke(double t, double *out) {
     out[0] = 0.0;
@@ -4671,403 +3699,6 @@ void excavator_dual_quaternion_compute_input_ranges_bucket_stroke(const double *
     out[22] = r1.hi;
     out[11] = r1.lo;
     out[23] = r1.hi;
-}
-
-/* Phi of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
-    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
-    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
-    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
-    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
-    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[6] = -boom_cyl_l_barrel_a00;
-    out[7] = -boom_cyl_l_barrel_a10;
-    out[8] = -boom_cyl_l_barrel_a20;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[15] = -arm_cyl_barrel_a00;
-    out[16] = -arm_cyl_barrel_a10;
-    out[17] = -arm_cyl_barrel_a20;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[24] = -bucket_cyl_barrel_a00;
-    out[25] = -bucket_cyl_barrel_a10;
-    out[26] = -bucket_cyl_barrel_a20;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_boom_cyl_l_barrel_wx = v[12];
-    const double v_boom_cyl_l_barrel_wy = v[13];
-    const double v_boom_cyl_l_barrel_wz = v[14];
-    const double v_boom_cyl_l_barrel_vx = v[15];
-    const double v_boom_cyl_l_barrel_vy = v[16];
-    const double v_boom_cyl_l_barrel_vz = v[17];
-    const double v_boom_cyl_l_rod_vx = v[21];
-    const double v_boom_cyl_l_rod_vy = v[22];
-    const double v_boom_cyl_l_rod_vz = v[23];
-    const double v_arm_cyl_barrel_wx = v[42];
-    const double v_arm_cyl_barrel_wy = v[43];
-    const double v_arm_cyl_barrel_wz = v[44];
-    const double v_arm_cyl_barrel_vx = v[45];
-    const double v_arm_cyl_barrel_vy = v[46];
-    const double v_arm_cyl_barrel_vz = v[47];
-    const double v_arm_cyl_rod_vx = v[51];
-    const double v_arm_cyl_rod_vy = v[52];
-    const double v_arm_cyl_rod_vz = v[53];
-    const double v_bucket_cyl_barrel_wx = v[54];
-    const double v_bucket_cyl_barrel_wy = v[55];
-    const double v_bucket_cyl_barrel_wz = v[56];
-    const double v_bucket_cyl_barrel_vx = v[57];
-    const double v_bucket_cyl_barrel_vy = v[58];
-    const double v_bucket_cyl_barrel_vz = v[59];
-    const double v_bucket_cyl_rod_vx = v[63];
-    const double v_bucket_cyl_rod_vy = v[64];
-    const double v_bucket_cyl_rod_vz = v[65];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
-    const double c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz;
-    const double c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy;
-    const double c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
-    const double c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz;
-    const double c17 = -c15 + c16;
-    const double c18 = -c12 + c11;
-    const double c19 = -c13 + c14;
-    const double c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
-    const double c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz;
-    const double c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy;
-    const double c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
-    const double c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz;
-    const double c26 = -c24 + c25;
-    const double c27 = -c21 + c20;
-    const double c28 = -c22 + c23;
-    const double c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
-    const double c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz;
-    const double c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy;
-    const double c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
-    const double c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz;
-    const double c35 = -c33 + c34;
-    const double c36 = -c30 + c29;
-    const double c37 = -c31 + c32;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1;
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -5130,403 +3761,6 @@ void excavator_dual_quaternion_compute_input_ranges_bucket_near_toggle(const dou
     out[22] = r1.hi;
     out[11] = r15.lo;
     out[23] = r15.hi;
-}
-
-/* Phi of the driver rows of case 'digging_fast'. */
-void excavator_dual_quaternion_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'digging_fast'. */
-void excavator_dual_quaternion_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
-    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
-    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
-    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
-    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
-    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[6] = -boom_cyl_l_barrel_a00;
-    out[7] = -boom_cyl_l_barrel_a10;
-    out[8] = -boom_cyl_l_barrel_a20;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[15] = -arm_cyl_barrel_a00;
-    out[16] = -arm_cyl_barrel_a10;
-    out[17] = -arm_cyl_barrel_a20;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[24] = -bucket_cyl_barrel_a00;
-    out[25] = -bucket_cyl_barrel_a10;
-    out[26] = -bucket_cyl_barrel_a20;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_fast'. */
-void excavator_dual_quaternion_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_fast'. */
-void excavator_dual_quaternion_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_boom_cyl_l_barrel_wx = v[12];
-    const double v_boom_cyl_l_barrel_wy = v[13];
-    const double v_boom_cyl_l_barrel_wz = v[14];
-    const double v_boom_cyl_l_barrel_vx = v[15];
-    const double v_boom_cyl_l_barrel_vy = v[16];
-    const double v_boom_cyl_l_barrel_vz = v[17];
-    const double v_boom_cyl_l_rod_vx = v[21];
-    const double v_boom_cyl_l_rod_vy = v[22];
-    const double v_boom_cyl_l_rod_vz = v[23];
-    const double v_arm_cyl_barrel_wx = v[42];
-    const double v_arm_cyl_barrel_wy = v[43];
-    const double v_arm_cyl_barrel_wz = v[44];
-    const double v_arm_cyl_barrel_vx = v[45];
-    const double v_arm_cyl_barrel_vy = v[46];
-    const double v_arm_cyl_barrel_vz = v[47];
-    const double v_arm_cyl_rod_vx = v[51];
-    const double v_arm_cyl_rod_vy = v[52];
-    const double v_arm_cyl_rod_vz = v[53];
-    const double v_bucket_cyl_barrel_wx = v[54];
-    const double v_bucket_cyl_barrel_wy = v[55];
-    const double v_bucket_cyl_barrel_wz = v[56];
-    const double v_bucket_cyl_barrel_vx = v[57];
-    const double v_bucket_cyl_barrel_vy = v[58];
-    const double v_bucket_cyl_barrel_vz = v[59];
-    const double v_bucket_cyl_rod_vx = v[63];
-    const double v_bucket_cyl_rod_vy = v[64];
-    const double v_bucket_cyl_rod_vz = v[65];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
-    const double c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz;
-    const double c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy;
-    const double c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
-    const double c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz;
-    const double c17 = -c15 + c16;
-    const double c18 = -c12 + c11;
-    const double c19 = -c13 + c14;
-    const double c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
-    const double c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz;
-    const double c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy;
-    const double c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
-    const double c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz;
-    const double c26 = -c24 + c25;
-    const double c27 = -c21 + c20;
-    const double c28 = -c22 + c23;
-    const double c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
-    const double c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz;
-    const double c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy;
-    const double c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
-    const double c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz;
-    const double c35 = -c33 + c34;
-    const double c36 = -c30 + c29;
-    const double c37 = -c31 + c32;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1;
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
 }
 
 /* Driver inputs of case 'digging_fast' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -5748,407 +3982,6 @@ void excavator_dual_quaternion_compute_input_ranges_digging_fast(const double *s
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'digging_paced'. */
-void excavator_dual_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'digging_paced'. */
-void excavator_dual_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
-    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
-    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
-    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
-    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
-    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[6] = -boom_cyl_l_barrel_a00;
-    out[7] = -boom_cyl_l_barrel_a10;
-    out[8] = -boom_cyl_l_barrel_a20;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[15] = -arm_cyl_barrel_a00;
-    out[16] = -arm_cyl_barrel_a10;
-    out[17] = -arm_cyl_barrel_a20;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[24] = -bucket_cyl_barrel_a00;
-    out[25] = -bucket_cyl_barrel_a10;
-    out[26] = -bucket_cyl_barrel_a20;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_paced'. */
-void excavator_dual_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
-
-/* gamma of the driver rows of case 'digging_paced'. */
-void excavator_dual_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_boom_cyl_l_barrel_wx = v[12];
-    const double v_boom_cyl_l_barrel_wy = v[13];
-    const double v_boom_cyl_l_barrel_wz = v[14];
-    const double v_boom_cyl_l_barrel_vx = v[15];
-    const double v_boom_cyl_l_barrel_vy = v[16];
-    const double v_boom_cyl_l_barrel_vz = v[17];
-    const double v_boom_cyl_l_rod_vx = v[21];
-    const double v_boom_cyl_l_rod_vy = v[22];
-    const double v_boom_cyl_l_rod_vz = v[23];
-    const double v_arm_cyl_barrel_wx = v[42];
-    const double v_arm_cyl_barrel_wy = v[43];
-    const double v_arm_cyl_barrel_wz = v[44];
-    const double v_arm_cyl_barrel_vx = v[45];
-    const double v_arm_cyl_barrel_vy = v[46];
-    const double v_arm_cyl_barrel_vz = v[47];
-    const double v_arm_cyl_rod_vx = v[51];
-    const double v_arm_cyl_rod_vy = v[52];
-    const double v_arm_cyl_rod_vz = v[53];
-    const double v_bucket_cyl_barrel_wx = v[54];
-    const double v_bucket_cyl_barrel_wy = v[55];
-    const double v_bucket_cyl_barrel_wz = v[56];
-    const double v_bucket_cyl_barrel_vx = v[57];
-    const double v_bucket_cyl_barrel_vy = v[58];
-    const double v_bucket_cyl_barrel_vz = v[59];
-    const double v_bucket_cyl_rod_vx = v[63];
-    const double v_bucket_cyl_rod_vy = v[64];
-    const double v_bucket_cyl_rod_vz = v[65];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
-    const double c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz;
-    const double c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy;
-    const double c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
-    const double c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz;
-    const double c17 = -c15 + c16;
-    const double c18 = -c12 + c11;
-    const double c19 = -c13 + c14;
-    const double c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
-    const double c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz;
-    const double c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy;
-    const double c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
-    const double c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz;
-    const double c26 = -c24 + c25;
-    const double c27 = -c21 + c20;
-    const double c28 = -c22 + c23;
-    const double c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
-    const double c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz;
-    const double c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy;
-    const double c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
-    const double c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz;
-    const double c35 = -c33 + c34;
-    const double c36 = -c30 + c29;
-    const double c37 = -c31 + c32;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1;
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
-}
-
 /* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *out) {
     const double c0 = -4.0/7.0*t;
@@ -6185,6 +4018,10 @@ void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *ou
     out[10] = -68.0/245.0*c20 - 4.0/35.0*c17 + (12.0/49.0)*c19 + c18;
     out[11] = -12.0/49.0*c20 + (8.0/245.0)*c17 + (52.0/245.0)*c19;
 }
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
 void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *span, double *out) {
@@ -6366,403 +4203,6 @@ void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *
     out[22] = r145.hi;
     out[11] = r153.lo;
     out[23] = r153.hi;
-}
-
-/* Phi of the driver rows of case 'oscillation'. */
-void excavator_dual_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_rw - 2.0*cos(c0)*upper_rz;
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'oscillation'. */
-void excavator_dual_quaternion_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
-    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
-    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
-    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
-    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
-    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    out[0] = -c2*upper_ry - c1*upper_rx;
-    out[1] = -c1*upper_ry + c2*upper_rx;
-    out[2] = -c1*upper_rz - c2*upper_rw;
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[6] = -boom_cyl_l_barrel_a00;
-    out[7] = -boom_cyl_l_barrel_a10;
-    out[8] = -boom_cyl_l_barrel_a20;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[15] = -arm_cyl_barrel_a00;
-    out[16] = -arm_cyl_barrel_a10;
-    out[17] = -arm_cyl_barrel_a20;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[24] = -bucket_cyl_barrel_a00;
-    out[25] = -bucket_cyl_barrel_a10;
-    out[26] = -bucket_cyl_barrel_a20;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'oscillation'. */
-void excavator_dual_quaternion_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rz = q[3];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'oscillation'. */
-void excavator_dual_quaternion_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_rw = q[0];
-    const double upper_rx = q[1];
-    const double upper_ry = q[2];
-    const double upper_rz = q[3];
-    const double boom_cyl_l_barrel_rw = q[16];
-    const double boom_cyl_l_barrel_rx = q[17];
-    const double boom_cyl_l_barrel_ry = q[18];
-    const double boom_cyl_l_barrel_rz = q[19];
-    const double boom_cyl_l_barrel_dw = q[20];
-    const double boom_cyl_l_barrel_dx = q[21];
-    const double boom_cyl_l_barrel_dy = q[22];
-    const double boom_cyl_l_barrel_dz = q[23];
-    const double boom_cyl_l_rod_rw = q[24];
-    const double boom_cyl_l_rod_rx = q[25];
-    const double boom_cyl_l_rod_ry = q[26];
-    const double boom_cyl_l_rod_rz = q[27];
-    const double boom_cyl_l_rod_dw = q[28];
-    const double boom_cyl_l_rod_dx = q[29];
-    const double boom_cyl_l_rod_dy = q[30];
-    const double boom_cyl_l_rod_dz = q[31];
-    const double arm_cyl_barrel_rw = q[56];
-    const double arm_cyl_barrel_rx = q[57];
-    const double arm_cyl_barrel_ry = q[58];
-    const double arm_cyl_barrel_rz = q[59];
-    const double arm_cyl_barrel_dw = q[60];
-    const double arm_cyl_barrel_dx = q[61];
-    const double arm_cyl_barrel_dy = q[62];
-    const double arm_cyl_barrel_dz = q[63];
-    const double arm_cyl_rod_rw = q[64];
-    const double arm_cyl_rod_rx = q[65];
-    const double arm_cyl_rod_ry = q[66];
-    const double arm_cyl_rod_rz = q[67];
-    const double arm_cyl_rod_dw = q[68];
-    const double arm_cyl_rod_dx = q[69];
-    const double arm_cyl_rod_dy = q[70];
-    const double arm_cyl_rod_dz = q[71];
-    const double bucket_cyl_barrel_rw = q[72];
-    const double bucket_cyl_barrel_rx = q[73];
-    const double bucket_cyl_barrel_ry = q[74];
-    const double bucket_cyl_barrel_rz = q[75];
-    const double bucket_cyl_barrel_dw = q[76];
-    const double bucket_cyl_barrel_dx = q[77];
-    const double bucket_cyl_barrel_dy = q[78];
-    const double bucket_cyl_barrel_dz = q[79];
-    const double bucket_cyl_rod_rw = q[80];
-    const double bucket_cyl_rod_rx = q[81];
-    const double bucket_cyl_rod_ry = q[82];
-    const double bucket_cyl_rod_rz = q[83];
-    const double bucket_cyl_rod_dw = q[84];
-    const double bucket_cyl_rod_dx = q[85];
-    const double bucket_cyl_rod_dy = q[86];
-    const double bucket_cyl_rod_dz = q[87];
-    const double v_upper_wx = v[0];
-    const double v_upper_wy = v[1];
-    const double v_upper_wz = v[2];
-    const double v_boom_cyl_l_barrel_wx = v[12];
-    const double v_boom_cyl_l_barrel_wy = v[13];
-    const double v_boom_cyl_l_barrel_wz = v[14];
-    const double v_boom_cyl_l_barrel_vx = v[15];
-    const double v_boom_cyl_l_barrel_vy = v[16];
-    const double v_boom_cyl_l_barrel_vz = v[17];
-    const double v_boom_cyl_l_rod_vx = v[21];
-    const double v_boom_cyl_l_rod_vy = v[22];
-    const double v_boom_cyl_l_rod_vz = v[23];
-    const double v_arm_cyl_barrel_wx = v[42];
-    const double v_arm_cyl_barrel_wy = v[43];
-    const double v_arm_cyl_barrel_wz = v[44];
-    const double v_arm_cyl_barrel_vx = v[45];
-    const double v_arm_cyl_barrel_vy = v[46];
-    const double v_arm_cyl_barrel_vz = v[47];
-    const double v_arm_cyl_rod_vx = v[51];
-    const double v_arm_cyl_rod_vy = v[52];
-    const double v_arm_cyl_rod_vz = v[53];
-    const double v_bucket_cyl_barrel_wx = v[54];
-    const double v_bucket_cyl_barrel_wy = v[55];
-    const double v_bucket_cyl_barrel_wz = v[56];
-    const double v_bucket_cyl_barrel_vx = v[57];
-    const double v_bucket_cyl_barrel_vy = v[58];
-    const double v_bucket_cyl_barrel_vz = v[59];
-    const double v_bucket_cyl_rod_vx = v[63];
-    const double v_bucket_cyl_rod_vy = v[64];
-    const double v_bucket_cyl_rod_vz = v[65];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
-    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
-    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
-    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
-    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
-    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
-    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
-    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
-    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
-    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
-    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
-    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = (1.0/2.0)*upper_rx;
-    const double c5 = c3*upper_rw;
-    const double c6 = (1.0/2.0)*c1;
-    const double c7 = c6*upper_rz;
-    const double c8 = (1.0/2.0)*upper_ry;
-    const double c9 = (1.0/2.0)*upper_rz;
-    const double c10 = (1.0/2.0)*upper_rw;
-    const double c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
-    const double c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz;
-    const double c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy;
-    const double c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
-    const double c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz;
-    const double c17 = -c15 + c16;
-    const double c18 = -c12 + c11;
-    const double c19 = -c13 + c14;
-    const double c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
-    const double c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz;
-    const double c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy;
-    const double c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
-    const double c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz;
-    const double c26 = -c24 + c25;
-    const double c27 = -c21 + c20;
-    const double c28 = -c22 + c23;
-    const double c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
-    const double c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz;
-    const double c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy;
-    const double c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
-    const double c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz;
-    const double c35 = -c33 + c34;
-    const double c36 = -c30 + c29;
-    const double c37 = -c31 + c32;
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1;
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3;
 }
 
 /* Driver inputs of case 'oscillation' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -7926,10 +5366,6 @@ void excavator_dual_quaternion_compute_loads(const double *q, double t, const do
     out[5] = -10000.0;
 }
 
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
-
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 84 values at INERTIA_COLS. Rows 0 to 35. */
 void excavator_dual_quaternion_compute_inertia_part0(const double *q, const double *v, const double *a, const double *p, double *out) {
     const double upper_rw = q[0];
@@ -8286,6 +5722,10 @@ void excavator_dual_quaternion_compute_inertia_part0(const double *q, const doub
     out[34] = -70.0*c178;
     out[35] = 70.0*c175;
 }
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 84 values at INERTIA_COLS. Rows 36 to 77. */
 void excavator_dual_quaternion_compute_inertia_part1(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -9583,18 +7023,18 @@ static void call_input_ranges_level_cut(const double *const *x, double *const *y
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
 static void phi_jac_trench_wall(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_trench_wall(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_level_cut(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_trench_wall(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_level_cut(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
 static void nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_trench_wall(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_level_cut(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
@@ -9603,7 +7043,7 @@ static void gamma_trench_wall(const double *q, const double *v, const double *u,
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_level_cut(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
@@ -9644,18 +7084,18 @@ static void call_input_ranges_trench_wall(const double *const *x, double *const 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
 static void phi_jac_bucket_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
 static void nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
@@ -9664,7 +7104,7 @@ static void gamma_bucket_toggle(const double *q, const double *v, const double *
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -9705,18 +7145,18 @@ static void call_input_ranges_bucket_toggle(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. */
 static void phi_jac_bucket_stroke(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_bucket_stroke(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_bucket_stroke(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). */
 static void nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_bucket_stroke(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. */
@@ -9725,7 +7165,7 @@ static void gamma_bucket_stroke(const double *q, const double *v, const double *
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_bucket_stroke(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_stroke' at time t: u, then du/dt, then d2u/dt2. */
@@ -9766,18 +7206,18 @@ static void call_input_ranges_bucket_stroke(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
 static void phi_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
 static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
@@ -9786,7 +7226,7 @@ static void gamma_bucket_near_toggle(const double *q, const double *v, const dou
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -9827,18 +7267,18 @@ static void call_input_ranges_bucket_near_toggle(const double *const *x, double 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. */
 static void phi_jac_digging_fast(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_digging_fast(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_digging_fast(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'digging_fast' (zero in the joint rows). */
 static void nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_digging_fast(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. */
@@ -9847,7 +7287,7 @@ static void gamma_digging_fast(const double *q, const double *v, const double *u
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_digging_fast(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging_fast' at time t: u, then du/dt, then d2u/dt2. */
@@ -9888,18 +7328,18 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
 static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_digging_paced(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_digging_paced(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
 static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
@@ -9908,7 +7348,7 @@ static void gamma_digging_paced(const double *q, const double *v, const double *
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
@@ -9949,18 +7389,18 @@ static void call_input_ranges_digging_paced(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
-    excavator_dual_quaternion_compute_drivers_phi_oscillation(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_dual_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_dual_quaternion_compute_drivers_jac_oscillation(q, u, p, jac + 427);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'oscillation' (zero in the joint rows). */
 static void nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_oscillation(q, u, ud, p, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. */
@@ -9969,7 +7409,7 @@ static void gamma_oscillation(const double *q, const double *v, const double *u,
     excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_oscillation(q, v, u, ud, udd, p, gamma + 80);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'oscillation' at time t: u, then du/dt, then d2u/dt2. */

@@ -18,8 +18,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 5 groups, each under its KINEGEN_PART value
- * (1 to 5; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 4 groups, each under its KINEGEN_PART value
+ * (1 to 4; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
 void excavator_euler_parameters_compute_joints_phi(const double *q, const double *p, double *out);
 void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
@@ -43,46 +43,18 @@ void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, co
 void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_level_cut(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_level_cut(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_trench_wall(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_trench_wall(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_bucket_toggle(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_bucket_toggle(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_bucket_stroke(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_bucket_stroke(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_bucket_near_toggle(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_bucket_near_toggle(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_digging_fast(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_digging_fast(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_digging_paced(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_digging_paced(const double *span, double *out);
-void excavator_euler_parameters_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_oscillation(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_oscillation(const double *span, double *out);
 void excavator_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
@@ -432,7 +404,7 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, const double
     out[93] = -1.0 + (bucket_e3*bucket_e3) + (bucket_e2*bucket_e2) + (bucket_e1*bucket_e1) + (bucket_e0*bucket_e0);
 }
 
-/* Phi of the driver rows of case 'digging'. */
+/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
 void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -1821,7 +1793,7 @@ void excavator_euler_parameters_compute_joints_jac_part4(const double *q, const 
     out[610] = 2.0*bucket_e3;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. */
+/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
 void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
@@ -1908,7 +1880,7 @@ void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, con
     out[31] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. */
+/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
 void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3167,7 +3139,7 @@ void excavator_euler_parameters_compute_joints_gamma_part3(const double *q, cons
     out[93] = -2.0*(v_bucket_e3*v_bucket_e3) - 2.0*(v_bucket_e2*v_bucket_e2) - 2.0*(v_bucket_e1*v_bucket_e1) - 2.0*(v_bucket_e0*v_bucket_e0);
 }
 
-/* gamma of the driver rows of case 'digging'. */
+/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
 void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3537,7 +3509,7 @@ void excavator_euler_parameters_compute_input_ranges_digging(const double *span,
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. */
+/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
 void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3563,7 +3535,7 @@ void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, c
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. */
+/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
 void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double bucket_e0 = q[94];
     const double bucket_e1 = q[95];
@@ -3593,7 +3565,7 @@ void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, c
     out[15] = c2*bucket_e3 - c1*bucket_e1;
 }
 
-/* nu of the driver rows of case 'level_cut'. */
+/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
 void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3617,7 +3589,7 @@ void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, co
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. */
+/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
 void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3744,132 +3716,6 @@ void excavator_euler_parameters_compute_input_ranges_level_cut(const double *spa
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double bucket_x = q[91];
-    const double bucket_z = q[93];
-    const double bucket_e0 = q[94];
-    const double bucket_e1 = q[95];
-    const double bucket_e2 = q[96];
-    const double bucket_e3 = q[97];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
-    const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (32.0/25.0)*bucket_a00 - u1 + (403.0/500.0)*bucket_a02 + bucket_x;
-    out[2] = (403.0/500.0)*bucket_a22 + (32.0/25.0)*bucket_a20 - u2 + bucket_z;
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
-}
-
-/* Phi_q values of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double bucket_e0 = q[94];
-    const double bucket_e1 = q[95];
-    const double bucket_e2 = q[96];
-    const double bucket_e3 = q[97];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*cos(u3);
-    const double c2 = 4.0*sin(u3);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = 1.0;
-    out[3] = (403.0/250.0)*bucket_e2 + (128.0/25.0)*bucket_e0;
-    out[4] = (403.0/250.0)*bucket_e3 + (128.0/25.0)*bucket_e1;
-    out[5] = (403.0/250.0)*bucket_e0;
-    out[6] = (403.0/250.0)*bucket_e1;
-    out[7] = 1.0;
-    out[8] = (403.0/125.0)*bucket_e0 - 64.0/25.0*bucket_e2;
-    out[9] = (64.0/25.0)*bucket_e3;
-    out[10] = -64.0/25.0*bucket_e0;
-    out[11] = (403.0/125.0)*bucket_e3 + (64.0/25.0)*bucket_e1;
-    out[12] = c2*bucket_e0 - c1*bucket_e2;
-    out[13] = -c1*bucket_e3;
-    out[14] = -c1*bucket_e0;
-    out[15] = c2*bucket_e3 - c1*bucket_e1;
-}
-
-/* nu of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double bucket_e0 = q[94];
-    const double bucket_e1 = q[95];
-    const double bucket_e2 = q[96];
-    const double bucket_e3 = q[97];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
-}
-
-/* gamma of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double bucket_e0 = q[94];
-    const double bucket_e1 = q[95];
-    const double bucket_e2 = q[96];
-    const double bucket_e3 = q[97];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_bucket_e0 = v[94];
-    const double v_bucket_e1 = v[95];
-    const double v_bucket_e2 = v[96];
-    const double v_bucket_e3 = v[97];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud3 = ud[3];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (403.0/250.0)*v_bucket_e2;
-    const double c4 = (403.0/250.0)*v_bucket_e3;
-    const double c5 = (64.0/25.0)*v_bucket_e2;
-    const double c6 = (64.0/25.0)*v_bucket_e1;
-    const double c7 = sin(u3);
-    const double c8 = cos(u3);
-    const double c9 = 2.0*c8;
-    const double c10 = c9*v_bucket_e2;
-    const double c11 = 4.0*c7;
-    const double c12 = c9*v_bucket_e1;
-    const double c13 = 2.0*c7;
-    const double c14 = 4.0*c8;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -c4*v_bucket_e1 - c3*v_bucket_e0 - (c4 + (128.0/25.0)*v_bucket_e1)*v_bucket_e1 - (c3 + (128.0/25.0)*v_bucket_e0)*v_bucket_e0 + udd1;
-    out[2] = -c6*v_bucket_e3 + c5*v_bucket_e0 - (c6 + (403.0/125.0)*v_bucket_e3)*v_bucket_e3 - (-c5 + (403.0/125.0)*v_bucket_e0)*v_bucket_e0 + udd2;
-    out[3] = c12*v_bucket_e3 - (-c7*bucket_a22 + c8*bucket_a02)*(ud3*ud3) - (-c12 + c11*v_bucket_e3)*v_bucket_e3 - (-c10 + c11*v_bucket_e0)*v_bucket_e0 + c10*v_bucket_e0 - 2.0*(c13*bucket_e0*v_bucket_e2 + (c14*bucket_e3 + c13*bucket_e1)*v_bucket_e3 + c13*bucket_e3*v_bucket_e1 + (c14*bucket_e0 + c13*bucket_e2)*v_bucket_e0)*ud3 - (c8*bucket_a22 + c7*bucket_a02)*udd3;
-}
-
 /* Driver inputs of case 'trench_wall' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_parameters_compute_inputs_trench_wall(double t, double *out) {
     const double c0 = pow(t, 3.0);
@@ -3951,320 +3797,6 @@ void excavator_euler_parameters_compute_input_ranges_trench_wall(const double *s
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
-
-/* Phi_q values of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
-    const double c2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y);
-    const double c3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x);
-    const double c4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z);
-    const double c5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y);
-    const double c6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x);
-    const double c7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
-    const double c8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y);
-    const double c9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = -boom_cyl_l_barrel_a00;
-    out[3] = -boom_cyl_l_barrel_a10;
-    out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2;
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2;
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0;
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2;
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2;
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0;
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0;
-    out[19] = arm_cyl_barrel_a00;
-    out[20] = arm_cyl_barrel_a10;
-    out[21] = arm_cyl_barrel_a20;
-    out[22] = -bucket_cyl_barrel_a00;
-    out[23] = -bucket_cyl_barrel_a10;
-    out[24] = -bucket_cyl_barrel_a20;
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2;
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2;
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0;
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0;
-    out[29] = bucket_cyl_barrel_a00;
-    out[30] = bucket_cyl_barrel_a10;
-    out[31] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_boom_cyl_l_barrel_x = v[14];
-    const double v_boom_cyl_l_barrel_y = v[15];
-    const double v_boom_cyl_l_barrel_z = v[16];
-    const double v_boom_cyl_l_barrel_e0 = v[17];
-    const double v_boom_cyl_l_barrel_e1 = v[18];
-    const double v_boom_cyl_l_barrel_e2 = v[19];
-    const double v_boom_cyl_l_barrel_e3 = v[20];
-    const double v_boom_cyl_l_rod_x = v[21];
-    const double v_boom_cyl_l_rod_y = v[22];
-    const double v_boom_cyl_l_rod_z = v[23];
-    const double v_arm_cyl_barrel_x = v[49];
-    const double v_arm_cyl_barrel_y = v[50];
-    const double v_arm_cyl_barrel_z = v[51];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_x = v[56];
-    const double v_arm_cyl_rod_y = v[57];
-    const double v_arm_cyl_rod_z = v[58];
-    const double v_bucket_cyl_barrel_x = v[63];
-    const double v_bucket_cyl_barrel_y = v[64];
-    const double v_bucket_cyl_barrel_z = v[65];
-    const double v_bucket_cyl_barrel_e0 = v[66];
-    const double v_bucket_cyl_barrel_e1 = v[67];
-    const double v_bucket_cyl_barrel_e2 = v[68];
-    const double v_bucket_cyl_barrel_e3 = v[69];
-    const double v_bucket_cyl_rod_x = v[70];
-    const double v_bucket_cyl_rod_y = v[71];
-    const double v_bucket_cyl_rod_z = v[72];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = 2.0*boom_cyl_l_barrel_e0;
-    const double c4 = c3*v_boom_cyl_l_barrel_e3;
-    const double c5 = 2.0*boom_cyl_l_barrel_e3;
-    const double c6 = c5*v_boom_cyl_l_barrel_e0;
-    const double c7 = 2.0*boom_cyl_l_barrel_e2;
-    const double c8 = c7*v_boom_cyl_l_barrel_e1;
-    const double c9 = 2.0*boom_cyl_l_barrel_e1;
-    const double c10 = c9*v_boom_cyl_l_barrel_e2;
-    const double c11 = 2.0*boom_cyl_l_rod_z;
-    const double c12 = 2.0*boom_cyl_l_barrel_z;
-    const double c13 = -c12 + c11;
-    const double c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y;
-    const double c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0;
-    const double c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1;
-    const double c18 = c17 + c16;
-    const double c19 = c3*v_boom_cyl_l_barrel_e2;
-    const double c20 = c7*v_boom_cyl_l_barrel_e0;
-    const double c21 = c9*v_boom_cyl_l_barrel_e3;
-    const double c22 = c5*v_boom_cyl_l_barrel_e1;
-    const double c23 = c22 + c21 - c20 - c19;
-    const double c24 = c10 + c8 + c6 + c4;
-    const double c25 = c12 - c11;
-    const double c26 = 2.0*arm_cyl_barrel_e0;
-    const double c27 = c26*v_arm_cyl_barrel_e3;
-    const double c28 = 2.0*arm_cyl_barrel_e3;
-    const double c29 = c28*v_arm_cyl_barrel_e0;
-    const double c30 = 2.0*arm_cyl_barrel_e2;
-    const double c31 = c30*v_arm_cyl_barrel_e1;
-    const double c32 = 2.0*arm_cyl_barrel_e1;
-    const double c33 = c32*v_arm_cyl_barrel_e2;
-    const double c34 = 2.0*arm_cyl_rod_z;
-    const double c35 = 2.0*arm_cyl_barrel_z;
-    const double c36 = -c35 + c34;
-    const double c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y;
-    const double c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0;
-    const double c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1;
-    const double c41 = c40 + c39;
-    const double c42 = c26*v_arm_cyl_barrel_e2;
-    const double c43 = c30*v_arm_cyl_barrel_e0;
-    const double c44 = c32*v_arm_cyl_barrel_e3;
-    const double c45 = c28*v_arm_cyl_barrel_e1;
-    const double c46 = c45 + c44 - c43 - c42;
-    const double c47 = c33 + c31 + c29 + c27;
-    const double c48 = c35 - c34;
-    const double c49 = 2.0*bucket_cyl_barrel_e0;
-    const double c50 = c49*v_bucket_cyl_barrel_e3;
-    const double c51 = 2.0*bucket_cyl_barrel_e3;
-    const double c52 = c51*v_bucket_cyl_barrel_e0;
-    const double c53 = 2.0*bucket_cyl_barrel_e2;
-    const double c54 = c53*v_bucket_cyl_barrel_e1;
-    const double c55 = 2.0*bucket_cyl_barrel_e1;
-    const double c56 = c55*v_bucket_cyl_barrel_e2;
-    const double c57 = 2.0*bucket_cyl_rod_z;
-    const double c58 = 2.0*bucket_cyl_barrel_z;
-    const double c59 = -c58 + c57;
-    const double c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y;
-    const double c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0;
-    const double c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1;
-    const double c64 = c63 + c62;
-    const double c65 = c49*v_bucket_cyl_barrel_e2;
-    const double c66 = c53*v_bucket_cyl_barrel_e0;
-    const double c67 = c55*v_bucket_cyl_barrel_e3;
-    const double c68 = c51*v_bucket_cyl_barrel_e1;
-    const double c69 = c68 + c67 - c66 - c65;
-    const double c70 = c56 + c54 + c52 + c50;
-    const double c71 = c58 - c57;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z;
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z;
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z;
-}
-
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_parameters_compute_inputs_bucket_toggle(double t, double *out) {
     out[0] = 0.0;
@@ -4317,316 +3849,6 @@ void excavator_euler_parameters_compute_input_ranges_bucket_toggle(const double 
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_parameters_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_parameters_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
-    const double c2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y);
-    const double c3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x);
-    const double c4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z);
-    const double c5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y);
-    const double c6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x);
-    const double c7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
-    const double c8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y);
-    const double c9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = -boom_cyl_l_barrel_a00;
-    out[3] = -boom_cyl_l_barrel_a10;
-    out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2;
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2;
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0;
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2;
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2;
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0;
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0;
-    out[19] = arm_cyl_barrel_a00;
-    out[20] = arm_cyl_barrel_a10;
-    out[21] = arm_cyl_barrel_a20;
-    out[22] = -bucket_cyl_barrel_a00;
-    out[23] = -bucket_cyl_barrel_a10;
-    out[24] = -bucket_cyl_barrel_a20;
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2;
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2;
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0;
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0;
-    out[29] = bucket_cyl_barrel_a00;
-    out[30] = bucket_cyl_barrel_a10;
-    out[31] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_parameters_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_parameters_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_boom_cyl_l_barrel_x = v[14];
-    const double v_boom_cyl_l_barrel_y = v[15];
-    const double v_boom_cyl_l_barrel_z = v[16];
-    const double v_boom_cyl_l_barrel_e0 = v[17];
-    const double v_boom_cyl_l_barrel_e1 = v[18];
-    const double v_boom_cyl_l_barrel_e2 = v[19];
-    const double v_boom_cyl_l_barrel_e3 = v[20];
-    const double v_boom_cyl_l_rod_x = v[21];
-    const double v_boom_cyl_l_rod_y = v[22];
-    const double v_boom_cyl_l_rod_z = v[23];
-    const double v_arm_cyl_barrel_x = v[49];
-    const double v_arm_cyl_barrel_y = v[50];
-    const double v_arm_cyl_barrel_z = v[51];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_x = v[56];
-    const double v_arm_cyl_rod_y = v[57];
-    const double v_arm_cyl_rod_z = v[58];
-    const double v_bucket_cyl_barrel_x = v[63];
-    const double v_bucket_cyl_barrel_y = v[64];
-    const double v_bucket_cyl_barrel_z = v[65];
-    const double v_bucket_cyl_barrel_e0 = v[66];
-    const double v_bucket_cyl_barrel_e1 = v[67];
-    const double v_bucket_cyl_barrel_e2 = v[68];
-    const double v_bucket_cyl_barrel_e3 = v[69];
-    const double v_bucket_cyl_rod_x = v[70];
-    const double v_bucket_cyl_rod_y = v[71];
-    const double v_bucket_cyl_rod_z = v[72];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = 2.0*boom_cyl_l_barrel_e0;
-    const double c4 = c3*v_boom_cyl_l_barrel_e3;
-    const double c5 = 2.0*boom_cyl_l_barrel_e3;
-    const double c6 = c5*v_boom_cyl_l_barrel_e0;
-    const double c7 = 2.0*boom_cyl_l_barrel_e2;
-    const double c8 = c7*v_boom_cyl_l_barrel_e1;
-    const double c9 = 2.0*boom_cyl_l_barrel_e1;
-    const double c10 = c9*v_boom_cyl_l_barrel_e2;
-    const double c11 = 2.0*boom_cyl_l_rod_z;
-    const double c12 = 2.0*boom_cyl_l_barrel_z;
-    const double c13 = -c12 + c11;
-    const double c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y;
-    const double c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0;
-    const double c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1;
-    const double c18 = c17 + c16;
-    const double c19 = c3*v_boom_cyl_l_barrel_e2;
-    const double c20 = c7*v_boom_cyl_l_barrel_e0;
-    const double c21 = c9*v_boom_cyl_l_barrel_e3;
-    const double c22 = c5*v_boom_cyl_l_barrel_e1;
-    const double c23 = c22 + c21 - c20 - c19;
-    const double c24 = c10 + c8 + c6 + c4;
-    const double c25 = c12 - c11;
-    const double c26 = 2.0*arm_cyl_barrel_e0;
-    const double c27 = c26*v_arm_cyl_barrel_e3;
-    const double c28 = 2.0*arm_cyl_barrel_e3;
-    const double c29 = c28*v_arm_cyl_barrel_e0;
-    const double c30 = 2.0*arm_cyl_barrel_e2;
-    const double c31 = c30*v_arm_cyl_barrel_e1;
-    const double c32 = 2.0*arm_cyl_barrel_e1;
-    const double c33 = c32*v_arm_cyl_barrel_e2;
-    const double c34 = 2.0*arm_cyl_rod_z;
-    const double c35 = 2.0*arm_cyl_barrel_z;
-    const double c36 = -c35 + c34;
-    const double c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y;
-    const double c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0;
-    const double c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1;
-    const double c41 = c40 + c39;
-    const double c42 = c26*v_arm_cyl_barrel_e2;
-    const double c43 = c30*v_arm_cyl_barrel_e0;
-    const double c44 = c32*v_arm_cyl_barrel_e3;
-    const double c45 = c28*v_arm_cyl_barrel_e1;
-    const double c46 = c45 + c44 - c43 - c42;
-    const double c47 = c33 + c31 + c29 + c27;
-    const double c48 = c35 - c34;
-    const double c49 = 2.0*bucket_cyl_barrel_e0;
-    const double c50 = c49*v_bucket_cyl_barrel_e3;
-    const double c51 = 2.0*bucket_cyl_barrel_e3;
-    const double c52 = c51*v_bucket_cyl_barrel_e0;
-    const double c53 = 2.0*bucket_cyl_barrel_e2;
-    const double c54 = c53*v_bucket_cyl_barrel_e1;
-    const double c55 = 2.0*bucket_cyl_barrel_e1;
-    const double c56 = c55*v_bucket_cyl_barrel_e2;
-    const double c57 = 2.0*bucket_cyl_rod_z;
-    const double c58 = 2.0*bucket_cyl_barrel_z;
-    const double c59 = -c58 + c57;
-    const double c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y;
-    const double c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0;
-    const double c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1;
-    const double c64 = c63 + c62;
-    const double c65 = c49*v_bucket_cyl_barrel_e2;
-    const double c66 = c53*v_bucket_cyl_barrel_e0;
-    const double c67 = c55*v_bucket_cyl_barrel_e3;
-    const double c68 = c51*v_bucket_cyl_barrel_e1;
-    const double c69 = c68 + c67 - c66 - c65;
-    const double c70 = c56 + c54 + c52 + c50;
-    const double c71 = c58 - c57;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z;
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z;
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z;
-}
-
 /* Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_parameters_compute_inputs_bucket_stroke(double t, double *out) {
     out[0] = 0.0;
@@ -4677,316 +3899,6 @@ void excavator_euler_parameters_compute_input_ranges_bucket_stroke(const double 
     out[22] = r1.hi;
     out[11] = r1.lo;
     out[23] = r1.hi;
-}
-
-/* Phi of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
-    const double c2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y);
-    const double c3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x);
-    const double c4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z);
-    const double c5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y);
-    const double c6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x);
-    const double c7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
-    const double c8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y);
-    const double c9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = -boom_cyl_l_barrel_a00;
-    out[3] = -boom_cyl_l_barrel_a10;
-    out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2;
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2;
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0;
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2;
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2;
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0;
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0;
-    out[19] = arm_cyl_barrel_a00;
-    out[20] = arm_cyl_barrel_a10;
-    out[21] = arm_cyl_barrel_a20;
-    out[22] = -bucket_cyl_barrel_a00;
-    out[23] = -bucket_cyl_barrel_a10;
-    out[24] = -bucket_cyl_barrel_a20;
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2;
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2;
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0;
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0;
-    out[29] = bucket_cyl_barrel_a00;
-    out[30] = bucket_cyl_barrel_a10;
-    out[31] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_boom_cyl_l_barrel_x = v[14];
-    const double v_boom_cyl_l_barrel_y = v[15];
-    const double v_boom_cyl_l_barrel_z = v[16];
-    const double v_boom_cyl_l_barrel_e0 = v[17];
-    const double v_boom_cyl_l_barrel_e1 = v[18];
-    const double v_boom_cyl_l_barrel_e2 = v[19];
-    const double v_boom_cyl_l_barrel_e3 = v[20];
-    const double v_boom_cyl_l_rod_x = v[21];
-    const double v_boom_cyl_l_rod_y = v[22];
-    const double v_boom_cyl_l_rod_z = v[23];
-    const double v_arm_cyl_barrel_x = v[49];
-    const double v_arm_cyl_barrel_y = v[50];
-    const double v_arm_cyl_barrel_z = v[51];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_x = v[56];
-    const double v_arm_cyl_rod_y = v[57];
-    const double v_arm_cyl_rod_z = v[58];
-    const double v_bucket_cyl_barrel_x = v[63];
-    const double v_bucket_cyl_barrel_y = v[64];
-    const double v_bucket_cyl_barrel_z = v[65];
-    const double v_bucket_cyl_barrel_e0 = v[66];
-    const double v_bucket_cyl_barrel_e1 = v[67];
-    const double v_bucket_cyl_barrel_e2 = v[68];
-    const double v_bucket_cyl_barrel_e3 = v[69];
-    const double v_bucket_cyl_rod_x = v[70];
-    const double v_bucket_cyl_rod_y = v[71];
-    const double v_bucket_cyl_rod_z = v[72];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = 2.0*boom_cyl_l_barrel_e0;
-    const double c4 = c3*v_boom_cyl_l_barrel_e3;
-    const double c5 = 2.0*boom_cyl_l_barrel_e3;
-    const double c6 = c5*v_boom_cyl_l_barrel_e0;
-    const double c7 = 2.0*boom_cyl_l_barrel_e2;
-    const double c8 = c7*v_boom_cyl_l_barrel_e1;
-    const double c9 = 2.0*boom_cyl_l_barrel_e1;
-    const double c10 = c9*v_boom_cyl_l_barrel_e2;
-    const double c11 = 2.0*boom_cyl_l_rod_z;
-    const double c12 = 2.0*boom_cyl_l_barrel_z;
-    const double c13 = -c12 + c11;
-    const double c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y;
-    const double c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0;
-    const double c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1;
-    const double c18 = c17 + c16;
-    const double c19 = c3*v_boom_cyl_l_barrel_e2;
-    const double c20 = c7*v_boom_cyl_l_barrel_e0;
-    const double c21 = c9*v_boom_cyl_l_barrel_e3;
-    const double c22 = c5*v_boom_cyl_l_barrel_e1;
-    const double c23 = c22 + c21 - c20 - c19;
-    const double c24 = c10 + c8 + c6 + c4;
-    const double c25 = c12 - c11;
-    const double c26 = 2.0*arm_cyl_barrel_e0;
-    const double c27 = c26*v_arm_cyl_barrel_e3;
-    const double c28 = 2.0*arm_cyl_barrel_e3;
-    const double c29 = c28*v_arm_cyl_barrel_e0;
-    const double c30 = 2.0*arm_cyl_barrel_e2;
-    const double c31 = c30*v_arm_cyl_barrel_e1;
-    const double c32 = 2.0*arm_cyl_barrel_e1;
-    const double c33 = c32*v_arm_cyl_barrel_e2;
-    const double c34 = 2.0*arm_cyl_rod_z;
-    const double c35 = 2.0*arm_cyl_barrel_z;
-    const double c36 = -c35 + c34;
-    const double c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y;
-    const double c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0;
-    const double c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1;
-    const double c41 = c40 + c39;
-    const double c42 = c26*v_arm_cyl_barrel_e2;
-    const double c43 = c30*v_arm_cyl_barrel_e0;
-    const double c44 = c32*v_arm_cyl_barrel_e3;
-    const double c45 = c28*v_arm_cyl_barrel_e1;
-    const double c46 = c45 + c44 - c43 - c42;
-    const double c47 = c33 + c31 + c29 + c27;
-    const double c48 = c35 - c34;
-    const double c49 = 2.0*bucket_cyl_barrel_e0;
-    const double c50 = c49*v_bucket_cyl_barrel_e3;
-    const double c51 = 2.0*bucket_cyl_barrel_e3;
-    const double c52 = c51*v_bucket_cyl_barrel_e0;
-    const double c53 = 2.0*bucket_cyl_barrel_e2;
-    const double c54 = c53*v_bucket_cyl_barrel_e1;
-    const double c55 = 2.0*bucket_cyl_barrel_e1;
-    const double c56 = c55*v_bucket_cyl_barrel_e2;
-    const double c57 = 2.0*bucket_cyl_rod_z;
-    const double c58 = 2.0*bucket_cyl_barrel_z;
-    const double c59 = -c58 + c57;
-    const double c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y;
-    const double c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0;
-    const double c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1;
-    const double c64 = c63 + c62;
-    const double c65 = c49*v_bucket_cyl_barrel_e2;
-    const double c66 = c53*v_bucket_cyl_barrel_e0;
-    const double c67 = c55*v_bucket_cyl_barrel_e3;
-    const double c68 = c51*v_bucket_cyl_barrel_e1;
-    const double c69 = c68 + c67 - c66 - c65;
-    const double c70 = c56 + c54 + c52 + c50;
-    const double c71 = c58 - c57;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z;
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z;
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z;
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -5051,315 +3963,9 @@ void excavator_euler_parameters_compute_input_ranges_bucket_near_toggle(const do
     out[23] = r15.hi;
 }
 
-/* Phi of the driver rows of case 'digging_fast'. */
-void excavator_euler_parameters_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
+#endif
 
-/* Phi_q values of the driver rows of case 'digging_fast'. */
-void excavator_euler_parameters_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
-    const double c2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y);
-    const double c3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x);
-    const double c4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z);
-    const double c5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y);
-    const double c6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x);
-    const double c7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
-    const double c8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y);
-    const double c9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = -boom_cyl_l_barrel_a00;
-    out[3] = -boom_cyl_l_barrel_a10;
-    out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2;
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2;
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0;
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2;
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2;
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0;
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0;
-    out[19] = arm_cyl_barrel_a00;
-    out[20] = arm_cyl_barrel_a10;
-    out[21] = arm_cyl_barrel_a20;
-    out[22] = -bucket_cyl_barrel_a00;
-    out[23] = -bucket_cyl_barrel_a10;
-    out[24] = -bucket_cyl_barrel_a20;
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2;
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2;
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0;
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0;
-    out[29] = bucket_cyl_barrel_a00;
-    out[30] = bucket_cyl_barrel_a10;
-    out[31] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_fast'. */
-void excavator_euler_parameters_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_fast'. */
-void excavator_euler_parameters_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_boom_cyl_l_barrel_x = v[14];
-    const double v_boom_cyl_l_barrel_y = v[15];
-    const double v_boom_cyl_l_barrel_z = v[16];
-    const double v_boom_cyl_l_barrel_e0 = v[17];
-    const double v_boom_cyl_l_barrel_e1 = v[18];
-    const double v_boom_cyl_l_barrel_e2 = v[19];
-    const double v_boom_cyl_l_barrel_e3 = v[20];
-    const double v_boom_cyl_l_rod_x = v[21];
-    const double v_boom_cyl_l_rod_y = v[22];
-    const double v_boom_cyl_l_rod_z = v[23];
-    const double v_arm_cyl_barrel_x = v[49];
-    const double v_arm_cyl_barrel_y = v[50];
-    const double v_arm_cyl_barrel_z = v[51];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_x = v[56];
-    const double v_arm_cyl_rod_y = v[57];
-    const double v_arm_cyl_rod_z = v[58];
-    const double v_bucket_cyl_barrel_x = v[63];
-    const double v_bucket_cyl_barrel_y = v[64];
-    const double v_bucket_cyl_barrel_z = v[65];
-    const double v_bucket_cyl_barrel_e0 = v[66];
-    const double v_bucket_cyl_barrel_e1 = v[67];
-    const double v_bucket_cyl_barrel_e2 = v[68];
-    const double v_bucket_cyl_barrel_e3 = v[69];
-    const double v_bucket_cyl_rod_x = v[70];
-    const double v_bucket_cyl_rod_y = v[71];
-    const double v_bucket_cyl_rod_z = v[72];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = 2.0*boom_cyl_l_barrel_e0;
-    const double c4 = c3*v_boom_cyl_l_barrel_e3;
-    const double c5 = 2.0*boom_cyl_l_barrel_e3;
-    const double c6 = c5*v_boom_cyl_l_barrel_e0;
-    const double c7 = 2.0*boom_cyl_l_barrel_e2;
-    const double c8 = c7*v_boom_cyl_l_barrel_e1;
-    const double c9 = 2.0*boom_cyl_l_barrel_e1;
-    const double c10 = c9*v_boom_cyl_l_barrel_e2;
-    const double c11 = 2.0*boom_cyl_l_rod_z;
-    const double c12 = 2.0*boom_cyl_l_barrel_z;
-    const double c13 = -c12 + c11;
-    const double c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y;
-    const double c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0;
-    const double c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1;
-    const double c18 = c17 + c16;
-    const double c19 = c3*v_boom_cyl_l_barrel_e2;
-    const double c20 = c7*v_boom_cyl_l_barrel_e0;
-    const double c21 = c9*v_boom_cyl_l_barrel_e3;
-    const double c22 = c5*v_boom_cyl_l_barrel_e1;
-    const double c23 = c22 + c21 - c20 - c19;
-    const double c24 = c10 + c8 + c6 + c4;
-    const double c25 = c12 - c11;
-    const double c26 = 2.0*arm_cyl_barrel_e0;
-    const double c27 = c26*v_arm_cyl_barrel_e3;
-    const double c28 = 2.0*arm_cyl_barrel_e3;
-    const double c29 = c28*v_arm_cyl_barrel_e0;
-    const double c30 = 2.0*arm_cyl_barrel_e2;
-    const double c31 = c30*v_arm_cyl_barrel_e1;
-    const double c32 = 2.0*arm_cyl_barrel_e1;
-    const double c33 = c32*v_arm_cyl_barrel_e2;
-    const double c34 = 2.0*arm_cyl_rod_z;
-    const double c35 = 2.0*arm_cyl_barrel_z;
-    const double c36 = -c35 + c34;
-    const double c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y;
-    const double c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0;
-    const double c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1;
-    const double c41 = c40 + c39;
-    const double c42 = c26*v_arm_cyl_barrel_e2;
-    const double c43 = c30*v_arm_cyl_barrel_e0;
-    const double c44 = c32*v_arm_cyl_barrel_e3;
-    const double c45 = c28*v_arm_cyl_barrel_e1;
-    const double c46 = c45 + c44 - c43 - c42;
-    const double c47 = c33 + c31 + c29 + c27;
-    const double c48 = c35 - c34;
-    const double c49 = 2.0*bucket_cyl_barrel_e0;
-    const double c50 = c49*v_bucket_cyl_barrel_e3;
-    const double c51 = 2.0*bucket_cyl_barrel_e3;
-    const double c52 = c51*v_bucket_cyl_barrel_e0;
-    const double c53 = 2.0*bucket_cyl_barrel_e2;
-    const double c54 = c53*v_bucket_cyl_barrel_e1;
-    const double c55 = 2.0*bucket_cyl_barrel_e1;
-    const double c56 = c55*v_bucket_cyl_barrel_e2;
-    const double c57 = 2.0*bucket_cyl_rod_z;
-    const double c58 = 2.0*bucket_cyl_barrel_z;
-    const double c59 = -c58 + c57;
-    const double c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y;
-    const double c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0;
-    const double c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1;
-    const double c64 = c63 + c62;
-    const double c65 = c49*v_bucket_cyl_barrel_e2;
-    const double c66 = c53*v_bucket_cyl_barrel_e0;
-    const double c67 = c55*v_bucket_cyl_barrel_e3;
-    const double c68 = c51*v_bucket_cyl_barrel_e1;
-    const double c69 = c68 + c67 - c66 - c65;
-    const double c70 = c56 + c54 + c52 + c50;
-    const double c71 = c58 - c57;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z;
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z;
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z;
-}
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Driver inputs of case 'digging_fast' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_parameters_compute_inputs_digging_fast(double t, double *out) {
@@ -5580,316 +4186,6 @@ void excavator_euler_parameters_compute_input_ranges_digging_fast(const double *
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'digging_paced'. */
-void excavator_euler_parameters_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'digging_paced'. */
-void excavator_euler_parameters_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
-    const double c2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y);
-    const double c3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x);
-    const double c4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z);
-    const double c5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y);
-    const double c6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x);
-    const double c7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
-    const double c8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y);
-    const double c9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = -boom_cyl_l_barrel_a00;
-    out[3] = -boom_cyl_l_barrel_a10;
-    out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2;
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2;
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0;
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2;
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2;
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0;
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0;
-    out[19] = arm_cyl_barrel_a00;
-    out[20] = arm_cyl_barrel_a10;
-    out[21] = arm_cyl_barrel_a20;
-    out[22] = -bucket_cyl_barrel_a00;
-    out[23] = -bucket_cyl_barrel_a10;
-    out[24] = -bucket_cyl_barrel_a20;
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2;
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2;
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0;
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0;
-    out[29] = bucket_cyl_barrel_a00;
-    out[30] = bucket_cyl_barrel_a10;
-    out[31] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_paced'. */
-void excavator_euler_parameters_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_paced'. */
-void excavator_euler_parameters_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_boom_cyl_l_barrel_x = v[14];
-    const double v_boom_cyl_l_barrel_y = v[15];
-    const double v_boom_cyl_l_barrel_z = v[16];
-    const double v_boom_cyl_l_barrel_e0 = v[17];
-    const double v_boom_cyl_l_barrel_e1 = v[18];
-    const double v_boom_cyl_l_barrel_e2 = v[19];
-    const double v_boom_cyl_l_barrel_e3 = v[20];
-    const double v_boom_cyl_l_rod_x = v[21];
-    const double v_boom_cyl_l_rod_y = v[22];
-    const double v_boom_cyl_l_rod_z = v[23];
-    const double v_arm_cyl_barrel_x = v[49];
-    const double v_arm_cyl_barrel_y = v[50];
-    const double v_arm_cyl_barrel_z = v[51];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_x = v[56];
-    const double v_arm_cyl_rod_y = v[57];
-    const double v_arm_cyl_rod_z = v[58];
-    const double v_bucket_cyl_barrel_x = v[63];
-    const double v_bucket_cyl_barrel_y = v[64];
-    const double v_bucket_cyl_barrel_z = v[65];
-    const double v_bucket_cyl_barrel_e0 = v[66];
-    const double v_bucket_cyl_barrel_e1 = v[67];
-    const double v_bucket_cyl_barrel_e2 = v[68];
-    const double v_bucket_cyl_barrel_e3 = v[69];
-    const double v_bucket_cyl_rod_x = v[70];
-    const double v_bucket_cyl_rod_y = v[71];
-    const double v_bucket_cyl_rod_z = v[72];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = 2.0*boom_cyl_l_barrel_e0;
-    const double c4 = c3*v_boom_cyl_l_barrel_e3;
-    const double c5 = 2.0*boom_cyl_l_barrel_e3;
-    const double c6 = c5*v_boom_cyl_l_barrel_e0;
-    const double c7 = 2.0*boom_cyl_l_barrel_e2;
-    const double c8 = c7*v_boom_cyl_l_barrel_e1;
-    const double c9 = 2.0*boom_cyl_l_barrel_e1;
-    const double c10 = c9*v_boom_cyl_l_barrel_e2;
-    const double c11 = 2.0*boom_cyl_l_rod_z;
-    const double c12 = 2.0*boom_cyl_l_barrel_z;
-    const double c13 = -c12 + c11;
-    const double c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y;
-    const double c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0;
-    const double c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1;
-    const double c18 = c17 + c16;
-    const double c19 = c3*v_boom_cyl_l_barrel_e2;
-    const double c20 = c7*v_boom_cyl_l_barrel_e0;
-    const double c21 = c9*v_boom_cyl_l_barrel_e3;
-    const double c22 = c5*v_boom_cyl_l_barrel_e1;
-    const double c23 = c22 + c21 - c20 - c19;
-    const double c24 = c10 + c8 + c6 + c4;
-    const double c25 = c12 - c11;
-    const double c26 = 2.0*arm_cyl_barrel_e0;
-    const double c27 = c26*v_arm_cyl_barrel_e3;
-    const double c28 = 2.0*arm_cyl_barrel_e3;
-    const double c29 = c28*v_arm_cyl_barrel_e0;
-    const double c30 = 2.0*arm_cyl_barrel_e2;
-    const double c31 = c30*v_arm_cyl_barrel_e1;
-    const double c32 = 2.0*arm_cyl_barrel_e1;
-    const double c33 = c32*v_arm_cyl_barrel_e2;
-    const double c34 = 2.0*arm_cyl_rod_z;
-    const double c35 = 2.0*arm_cyl_barrel_z;
-    const double c36 = -c35 + c34;
-    const double c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y;
-    const double c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0;
-    const double c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1;
-    const double c41 = c40 + c39;
-    const double c42 = c26*v_arm_cyl_barrel_e2;
-    const double c43 = c30*v_arm_cyl_barrel_e0;
-    const double c44 = c32*v_arm_cyl_barrel_e3;
-    const double c45 = c28*v_arm_cyl_barrel_e1;
-    const double c46 = c45 + c44 - c43 - c42;
-    const double c47 = c33 + c31 + c29 + c27;
-    const double c48 = c35 - c34;
-    const double c49 = 2.0*bucket_cyl_barrel_e0;
-    const double c50 = c49*v_bucket_cyl_barrel_e3;
-    const double c51 = 2.0*bucket_cyl_barrel_e3;
-    const double c52 = c51*v_bucket_cyl_barrel_e0;
-    const double c53 = 2.0*bucket_cyl_barrel_e2;
-    const double c54 = c53*v_bucket_cyl_barrel_e1;
-    const double c55 = 2.0*bucket_cyl_barrel_e1;
-    const double c56 = c55*v_bucket_cyl_barrel_e2;
-    const double c57 = 2.0*bucket_cyl_rod_z;
-    const double c58 = 2.0*bucket_cyl_barrel_z;
-    const double c59 = -c58 + c57;
-    const double c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y;
-    const double c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0;
-    const double c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1;
-    const double c64 = c63 + c62;
-    const double c65 = c49*v_bucket_cyl_barrel_e2;
-    const double c66 = c53*v_bucket_cyl_barrel_e0;
-    const double c67 = c55*v_bucket_cyl_barrel_e3;
-    const double c68 = c51*v_bucket_cyl_barrel_e1;
-    const double c69 = c68 + c67 - c66 - c65;
-    const double c70 = c56 + c54 + c52 + c50;
-    const double c71 = c58 - c57;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z;
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z;
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z;
-}
-
 /* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_parameters_compute_inputs_digging_paced(double t, double *out) {
     const double c0 = -4.0/7.0*t;
@@ -6107,320 +4403,6 @@ void excavator_euler_parameters_compute_input_ranges_digging_paced(const double 
     out[22] = r145.hi;
     out[11] = r153.lo;
     out[23] = r153.hi;
-}
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
-
-/* Phi of the driver rows of case 'oscillation'. */
-void excavator_euler_parameters_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_e0 - 2.0*cos(c0)*upper_e3;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'oscillation'. */
-void excavator_euler_parameters_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
-    const double c2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y);
-    const double c3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x);
-    const double c4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z);
-    const double c5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y);
-    const double c6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x);
-    const double c7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
-    const double c8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y);
-    const double c9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x);
-    out[0] = 2.0*sin(c0);
-    out[1] = -2.0*cos(c0);
-    out[2] = -boom_cyl_l_barrel_a00;
-    out[3] = -boom_cyl_l_barrel_a10;
-    out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2;
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2;
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0;
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2;
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2;
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0;
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0;
-    out[19] = arm_cyl_barrel_a00;
-    out[20] = arm_cyl_barrel_a10;
-    out[21] = arm_cyl_barrel_a20;
-    out[22] = -bucket_cyl_barrel_a00;
-    out[23] = -bucket_cyl_barrel_a10;
-    out[24] = -bucket_cyl_barrel_a20;
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2;
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2;
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0;
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0;
-    out[29] = bucket_cyl_barrel_a00;
-    out[30] = bucket_cyl_barrel_a10;
-    out[31] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'oscillation'. */
-void excavator_euler_parameters_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'oscillation'. */
-void excavator_euler_parameters_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_e0 = q[3];
-    const double upper_e3 = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_e0 = q[52];
-    const double arm_cyl_barrel_e1 = q[53];
-    const double arm_cyl_barrel_e2 = q[54];
-    const double arm_cyl_barrel_e3 = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_e0 = q[66];
-    const double bucket_cyl_barrel_e1 = q[67];
-    const double bucket_cyl_barrel_e2 = q[68];
-    const double bucket_cyl_barrel_e3 = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_e0 = v[3];
-    const double v_upper_e3 = v[6];
-    const double v_boom_cyl_l_barrel_x = v[14];
-    const double v_boom_cyl_l_barrel_y = v[15];
-    const double v_boom_cyl_l_barrel_z = v[16];
-    const double v_boom_cyl_l_barrel_e0 = v[17];
-    const double v_boom_cyl_l_barrel_e1 = v[18];
-    const double v_boom_cyl_l_barrel_e2 = v[19];
-    const double v_boom_cyl_l_barrel_e3 = v[20];
-    const double v_boom_cyl_l_rod_x = v[21];
-    const double v_boom_cyl_l_rod_y = v[22];
-    const double v_boom_cyl_l_rod_z = v[23];
-    const double v_arm_cyl_barrel_x = v[49];
-    const double v_arm_cyl_barrel_y = v[50];
-    const double v_arm_cyl_barrel_z = v[51];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_x = v[56];
-    const double v_arm_cyl_rod_y = v[57];
-    const double v_arm_cyl_rod_z = v[58];
-    const double v_bucket_cyl_barrel_x = v[63];
-    const double v_bucket_cyl_barrel_y = v[64];
-    const double v_bucket_cyl_barrel_z = v[65];
-    const double v_bucket_cyl_barrel_e0 = v[66];
-    const double v_bucket_cyl_barrel_e1 = v[67];
-    const double v_bucket_cyl_barrel_e2 = v[68];
-    const double v_bucket_cyl_barrel_e3 = v[69];
-    const double v_bucket_cyl_rod_x = v[70];
-    const double v_bucket_cyl_rod_y = v[71];
-    const double v_bucket_cyl_rod_z = v[72];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = 2.0*boom_cyl_l_barrel_e0;
-    const double c4 = c3*v_boom_cyl_l_barrel_e3;
-    const double c5 = 2.0*boom_cyl_l_barrel_e3;
-    const double c6 = c5*v_boom_cyl_l_barrel_e0;
-    const double c7 = 2.0*boom_cyl_l_barrel_e2;
-    const double c8 = c7*v_boom_cyl_l_barrel_e1;
-    const double c9 = 2.0*boom_cyl_l_barrel_e1;
-    const double c10 = c9*v_boom_cyl_l_barrel_e2;
-    const double c11 = 2.0*boom_cyl_l_rod_z;
-    const double c12 = 2.0*boom_cyl_l_barrel_z;
-    const double c13 = -c12 + c11;
-    const double c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y;
-    const double c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0;
-    const double c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1;
-    const double c18 = c17 + c16;
-    const double c19 = c3*v_boom_cyl_l_barrel_e2;
-    const double c20 = c7*v_boom_cyl_l_barrel_e0;
-    const double c21 = c9*v_boom_cyl_l_barrel_e3;
-    const double c22 = c5*v_boom_cyl_l_barrel_e1;
-    const double c23 = c22 + c21 - c20 - c19;
-    const double c24 = c10 + c8 + c6 + c4;
-    const double c25 = c12 - c11;
-    const double c26 = 2.0*arm_cyl_barrel_e0;
-    const double c27 = c26*v_arm_cyl_barrel_e3;
-    const double c28 = 2.0*arm_cyl_barrel_e3;
-    const double c29 = c28*v_arm_cyl_barrel_e0;
-    const double c30 = 2.0*arm_cyl_barrel_e2;
-    const double c31 = c30*v_arm_cyl_barrel_e1;
-    const double c32 = 2.0*arm_cyl_barrel_e1;
-    const double c33 = c32*v_arm_cyl_barrel_e2;
-    const double c34 = 2.0*arm_cyl_rod_z;
-    const double c35 = 2.0*arm_cyl_barrel_z;
-    const double c36 = -c35 + c34;
-    const double c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y;
-    const double c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0;
-    const double c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1;
-    const double c41 = c40 + c39;
-    const double c42 = c26*v_arm_cyl_barrel_e2;
-    const double c43 = c30*v_arm_cyl_barrel_e0;
-    const double c44 = c32*v_arm_cyl_barrel_e3;
-    const double c45 = c28*v_arm_cyl_barrel_e1;
-    const double c46 = c45 + c44 - c43 - c42;
-    const double c47 = c33 + c31 + c29 + c27;
-    const double c48 = c35 - c34;
-    const double c49 = 2.0*bucket_cyl_barrel_e0;
-    const double c50 = c49*v_bucket_cyl_barrel_e3;
-    const double c51 = 2.0*bucket_cyl_barrel_e3;
-    const double c52 = c51*v_bucket_cyl_barrel_e0;
-    const double c53 = 2.0*bucket_cyl_barrel_e2;
-    const double c54 = c53*v_bucket_cyl_barrel_e1;
-    const double c55 = 2.0*bucket_cyl_barrel_e1;
-    const double c56 = c55*v_bucket_cyl_barrel_e2;
-    const double c57 = 2.0*bucket_cyl_rod_z;
-    const double c58 = 2.0*bucket_cyl_barrel_z;
-    const double c59 = -c58 + c57;
-    const double c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y;
-    const double c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0;
-    const double c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1;
-    const double c64 = c63 + c62;
-    const double c65 = c49*v_bucket_cyl_barrel_e2;
-    const double c66 = c53*v_bucket_cyl_barrel_e0;
-    const double c67 = c55*v_bucket_cyl_barrel_e3;
-    const double c68 = c51*v_bucket_cyl_barrel_e1;
-    const double c69 = c68 + c67 - c66 - c65;
-    const double c70 = c56 + c54 + c52 + c50;
-    const double c71 = c58 - c57;
-    out[0] = -2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1.0/2.0*c2*upper_e0 + (1.0/2.0)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0;
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z;
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z;
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z;
 }
 
 /* Driver inputs of case 'oscillation' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -7846,7 +5828,7 @@ void excavator_euler_parameters_compute_inertia_part0(const double *q, const dou
 
 #endif
 
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 98 values at INERTIA_COLS. Rows 28 to 62. */
 void excavator_euler_parameters_compute_inertia_part1(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -9236,19 +7218,19 @@ static void call_input_ranges_level_cut(const double *const *x, double *const *y
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
 static void phi_jac_trench_wall(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_trench_wall(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_level_cut(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_trench_wall(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_level_cut(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
 static void nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_trench_wall(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_level_cut(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
@@ -9257,7 +7239,7 @@ static void gamma_trench_wall(const double *q, const double *v, const double *u,
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_level_cut(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
@@ -9298,19 +7280,19 @@ static void call_input_ranges_trench_wall(const double *const *x, double *const 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
 static void phi_jac_bucket_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_bucket_toggle(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_bucket_toggle(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
 static void nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_bucket_toggle(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
@@ -9319,7 +7301,7 @@ static void gamma_bucket_toggle(const double *q, const double *v, const double *
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -9360,19 +7342,19 @@ static void call_input_ranges_bucket_toggle(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. */
 static void phi_jac_bucket_stroke(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_bucket_stroke(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_bucket_stroke(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). */
 static void nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_bucket_stroke(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. */
@@ -9381,7 +7363,7 @@ static void gamma_bucket_stroke(const double *q, const double *v, const double *
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_bucket_stroke(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'bucket_stroke' at time t: u, then du/dt, then d2u/dt2. */
@@ -9422,19 +7404,19 @@ static void call_input_ranges_bucket_stroke(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
 static void phi_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
 static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
@@ -9443,7 +7425,7 @@ static void gamma_bucket_near_toggle(const double *q, const double *v, const dou
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -9484,19 +7466,19 @@ static void call_input_ranges_bucket_near_toggle(const double *const *x, double 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. */
 static void phi_jac_digging_fast(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_digging_fast(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_digging_fast(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'digging_fast' (zero in the joint rows). */
 static void nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_digging_fast(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. */
@@ -9505,7 +7487,7 @@ static void gamma_digging_fast(const double *q, const double *v, const double *u
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_digging_fast(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'digging_fast' at time t: u, then du/dt, then d2u/dt2. */
@@ -9546,19 +7528,19 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
 static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_digging_paced(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_digging_paced(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
 static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
@@ -9567,7 +7549,7 @@ static void gamma_digging_paced(const double *q, const double *v, const double *
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
@@ -9608,19 +7590,19 @@ static void call_input_ranges_digging_paced(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
-    excavator_euler_parameters_compute_drivers_phi_oscillation(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
     excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
     excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_parameters_compute_drivers_jac_oscillation(q, u, p, jac + 611);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'oscillation' (zero in the joint rows). */
 static void nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_oscillation(q, u, ud, p, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. */
@@ -9629,7 +7611,7 @@ static void gamma_oscillation(const double *q, const double *v, const double *u,
     excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
     excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_oscillation(q, v, u, ud, udd, p, gamma + 94);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'oscillation' at time t: u, then du/dt, then d2u/dt2. */

@@ -18,8 +18,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 6 groups, each under its KINEGEN_PART value
- * (1 to 6; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 4 groups, each under its KINEGEN_PART value
+ * (1 to 4; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
 void excavator_euler_zxy_compute_joints_phi(const double *q, const double *p, double *out);
 void excavator_euler_zxy_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
@@ -46,46 +46,18 @@ void excavator_euler_zxy_compute_drivers_nu_level_cut(const double *q, const dou
 void excavator_euler_zxy_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_level_cut(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_level_cut(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_trench_wall(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_trench_wall(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_bucket_toggle(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_bucket_toggle(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_bucket_stroke(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_bucket_stroke(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_bucket_near_toggle(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_bucket_near_toggle(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_digging_fast(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_digging_fast(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_digging_paced(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_digging_paced(const double *span, double *out);
-void excavator_euler_zxy_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_euler_zxy_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_oscillation(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_oscillation(const double *span, double *out);
 void excavator_euler_zxy_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
@@ -408,7 +380,7 @@ void excavator_euler_zxy_compute_joints_phi(const double *q, const double *p, do
     out[79] = -c17*side_link_a22 + c16*side_link_a20 - side_link_z + bucket_cyl_rod_z;
 }
 
-/* Phi of the driver rows of case 'digging'. */
+/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
 void excavator_euler_zxy_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -1738,7 +1710,7 @@ void excavator_euler_zxy_compute_joints_jac_part4(const double *q, const double 
     out[406] = c616*c630 - c620*c631;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. */
+/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
 void excavator_euler_zxy_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -1864,7 +1836,7 @@ void excavator_euler_zxy_compute_drivers_jac_digging(const double *q, const doub
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. */
+/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
 void excavator_euler_zxy_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -3686,7 +3658,7 @@ void excavator_euler_zxy_compute_joints_gamma_part6(const double *q, const doubl
     out[79] = -(c1361*v_side_link_gamma + c1362*v_side_link_beta)*v_side_link_gamma - (c1362*v_side_link_gamma + c1361*v_side_link_beta)*v_side_link_beta;
 }
 
-/* gamma of the driver rows of case 'digging'. */
+/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
 void excavator_euler_zxy_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4119,7 +4091,7 @@ void excavator_euler_zxy_compute_input_ranges_digging(const double *span, double
 
 #if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
-/* Phi of the driver rows of case 'level_cut'. */
+/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
 void excavator_euler_zxy_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4146,7 +4118,7 @@ void excavator_euler_zxy_compute_drivers_phi_level_cut(const double *q, const do
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. */
+/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
 void excavator_euler_zxy_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4209,7 +4181,7 @@ void excavator_euler_zxy_compute_drivers_jac_level_cut(const double *q, const do
     out[12] = -c30*c36*c35 - c28*(-c32*c31 + c34);
 }
 
-/* nu of the driver rows of case 'level_cut'. */
+/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
 void excavator_euler_zxy_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4234,7 +4206,7 @@ void excavator_euler_zxy_compute_drivers_nu_level_cut(const double *q, const dou
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. */
+/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
 void excavator_euler_zxy_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4420,226 +4392,6 @@ void excavator_euler_zxy_compute_input_ranges_level_cut(const double *span, doub
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'trench_wall'. */
-void excavator_euler_zxy_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double bucket_x = q[78];
-    const double bucket_z = q[80];
-    const double bucket_alpha = q[81];
-    const double bucket_beta = q[82];
-    const double bucket_gamma = q[83];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double bucket_a00 = cos(bucket_alpha)*cos(bucket_gamma) - sin(bucket_alpha)*sin(bucket_beta)*sin(bucket_gamma);
-    const double bucket_a02 = cos(bucket_alpha)*sin(bucket_gamma) + cos(bucket_gamma)*sin(bucket_alpha)*sin(bucket_beta);
-    const double bucket_a20 = -cos(bucket_beta)*sin(bucket_gamma);
-    const double bucket_a22 = cos(bucket_beta)*cos(bucket_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (32.0/25.0)*bucket_a00 - u1 + (403.0/500.0)*bucket_a02 + bucket_x;
-    out[2] = (403.0/500.0)*bucket_a22 + (32.0/25.0)*bucket_a20 - u2 + bucket_z;
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
-}
-
-/* Phi_q values of the driver rows of case 'trench_wall'. */
-void excavator_euler_zxy_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double bucket_alpha = q[81];
-    const double bucket_beta = q[82];
-    const double bucket_gamma = q[83];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    (void)p;
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = sin(bucket_alpha);
-    const double c13 = sin(bucket_gamma);
-    const double c14 = (403.0/500.0)*c12*c13;
-    const double c15 = cos(bucket_gamma);
-    const double c16 = c12*c15;
-    const double c17 = (32.0/25.0)*c16;
-    const double c18 = sin(bucket_beta);
-    const double c19 = cos(bucket_alpha);
-    const double c20 = (32.0/25.0)*c13;
-    const double c21 = c20*c19;
-    const double c22 = (403.0/500.0)*c15*c19;
-    const double c23 = cos(bucket_beta);
-    const double c24 = cos(bucket_gamma);
-    const double c25 = sin(bucket_beta);
-    const double c26 = sin(bucket_gamma);
-    const double c27 = cos(bucket_beta);
-    const double c28 = cos(u3);
-    const double c29 = sin(bucket_alpha);
-    const double c30 = sin(bucket_gamma);
-    const double c31 = c30*c29;
-    const double c32 = sin(bucket_beta);
-    const double c33 = cos(bucket_gamma);
-    const double c34 = c33*cos(bucket_alpha);
-    const double c35 = sin(u3);
-    const double c36 = cos(bucket_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = 1.0;
-    out[4] = c18*c22 - c18*c21 - c17 - c14;
-    out[5] = (403.0/500.0)*c16*c23 - c12*c20*c23;
-    out[6] = -c18*c17 - c14*c18 + c22 - c21;
-    out[7] = 1.0;
-    out[8] = (32.0/25.0)*c26*c25 - 403.0/500.0*c24*c25;
-    out[9] = -32.0/25.0*c24*c27 - 403.0/500.0*c26*c27;
-    out[10] = -c28*(c32*c34 - c31);
-    out[11] = -c28*c29*c33*c36 - c32*c33*c35;
-    out[12] = -c30*c36*c35 - c28*(-c32*c31 + c34);
-}
-
-/* nu of the driver rows of case 'trench_wall'. */
-void excavator_euler_zxy_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double bucket_alpha = q[81];
-    const double bucket_beta = q[82];
-    const double bucket_gamma = q[83];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double bucket_a02 = cos(bucket_alpha)*sin(bucket_gamma) + cos(bucket_gamma)*sin(bucket_alpha)*sin(bucket_beta);
-    const double bucket_a22 = cos(bucket_beta)*cos(bucket_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
-}
-
-/* gamma of the driver rows of case 'trench_wall'. */
-void excavator_euler_zxy_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double bucket_alpha = q[81];
-    const double bucket_beta = q[82];
-    const double bucket_gamma = q[83];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_bucket_alpha = v[81];
-    const double v_bucket_beta = v[82];
-    const double v_bucket_gamma = v[83];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud3 = ud[3];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double bucket_a02 = cos(bucket_alpha)*sin(bucket_gamma) + cos(bucket_gamma)*sin(bucket_alpha)*sin(bucket_beta);
-    const double bucket_a22 = cos(bucket_beta)*cos(bucket_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = sin(bucket_gamma);
-    const double c26 = cos(bucket_alpha);
-    const double c27 = c25*c26;
-    const double c28 = (403.0/500.0)*c27;
-    const double c29 = cos(bucket_gamma);
-    const double c30 = c26*c29;
-    const double c31 = (32.0/25.0)*c30;
-    const double c32 = sin(bucket_beta);
-    const double c33 = sin(bucket_alpha);
-    const double c34 = c25*c33;
-    const double c35 = (32.0/25.0)*c34;
-    const double c36 = c29*c33;
-    const double c37 = (403.0/500.0)*c36;
-    const double c38 = -c32*c37 + c32*c35;
-    const double c39 = c38 - c31 - c28;
-    const double c40 = cos(bucket_beta);
-    const double c41 = (32.0/25.0)*c40;
-    const double c42 = (403.0/500.0)*c40;
-    const double c43 = c30*c42 - c27*c41;
-    const double c44 = -c31*c32 - c28*c32 - c37 + c35;
-    const double c45 = -c36*c41 - c34*c42;
-    const double c46 = cos(bucket_gamma);
-    const double c47 = cos(bucket_beta);
-    const double c48 = sin(bucket_gamma);
-    const double c49 = (32.0/25.0)*c48*c47 - 403.0/500.0*c46*c47;
-    const double c50 = sin(bucket_beta);
-    const double c51 = (32.0/25.0)*c46*c50 + (403.0/500.0)*c48*c50;
-    const double c52 = sin(u3);
-    const double c53 = cos(u3);
-    const double c54 = cos(bucket_alpha);
-    const double c55 = cos(bucket_gamma);
-    const double c56 = c54*c55;
-    const double c57 = cos(bucket_beta);
-    const double c58 = c53*c57;
-    const double c59 = c56*c58;
-    const double c60 = sin(bucket_gamma);
-    const double c61 = c54*c60;
-    const double c62 = sin(bucket_beta);
-    const double c63 = sin(bucket_alpha);
-    const double c64 = c55*c63;
-    const double c65 = c64*c62;
-    const double c66 = c53*(-c65 - c61);
-    const double c67 = c53*(-c61*c62 - c64);
-    const double c68 = c60*c63;
-    const double c69 = c52*c60*c62 + c58*c68;
-    const double c70 = c52*c57;
-    const double c71 = -c55*c70;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -(c39*v_bucket_gamma + c45*v_bucket_beta + c44*v_bucket_alpha)*v_bucket_gamma - v_bucket_beta*(c45*v_bucket_gamma + c38*v_bucket_beta + c43*v_bucket_alpha) - (c44*v_bucket_gamma + c43*v_bucket_beta + c39*v_bucket_alpha)*v_bucket_alpha + udd1;
-    out[2] = -(c49*v_bucket_gamma + c51*v_bucket_beta)*v_bucket_gamma - v_bucket_beta*(c51*v_bucket_gamma + c49*v_bucket_beta) + udd2;
-    out[3] = -2.0*ud3*((-c58*c60 + c52*(-c62*c68 + c56))*v_bucket_gamma + c52*(c56*c62 - c68)*v_bucket_alpha + v_bucket_beta*(c64*c70 - c53*c55*c62)) - (-c52*bucket_a22 + c53*bucket_a02)*(ud3*ud3) - ((c71 - c66)*v_bucket_gamma + c69*v_bucket_beta - c67*v_bucket_alpha)*v_bucket_gamma - (-c66*v_bucket_alpha - c67*v_bucket_gamma - c59*v_bucket_beta)*v_bucket_alpha - v_bucket_beta*(c69*v_bucket_gamma + v_bucket_beta*(c53*c65 + c71) - c59*v_bucket_alpha) - (c53*bucket_a22 + c52*bucket_a02)*udd3;
-}
-
 /* Driver inputs of case 'trench_wall' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_zxy_compute_inputs_trench_wall(double t, double *out) {
     const double c0 = pow(t, 3.0);
@@ -4721,415 +4473,6 @@ void excavator_euler_zxy_compute_input_ranges_trench_wall(const double *span, do
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_zxy_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_zxy_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c13 = sin(boom_cyl_l_barrel_alpha);
-    const double c14 = cos(boom_cyl_l_barrel_gamma);
-    const double c15 = c14*c13;
-    const double c16 = sin(boom_cyl_l_barrel_beta);
-    const double c17 = cos(boom_cyl_l_barrel_alpha);
-    const double c18 = sin(boom_cyl_l_barrel_gamma);
-    const double c19 = c18*c17;
-    const double c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c21 = c14*c17;
-    const double c22 = c13*c18;
-    const double c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c24 = cos(boom_cyl_l_barrel_beta);
-    const double c25 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c26 = sin(arm_cyl_barrel_alpha);
-    const double c27 = cos(arm_cyl_barrel_gamma);
-    const double c28 = c27*c26;
-    const double c29 = sin(arm_cyl_barrel_beta);
-    const double c30 = cos(arm_cyl_barrel_alpha);
-    const double c31 = sin(arm_cyl_barrel_gamma);
-    const double c32 = c31*c30;
-    const double c33 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c34 = c27*c30;
-    const double c35 = c26*c31;
-    const double c36 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c37 = cos(arm_cyl_barrel_beta);
-    const double c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c39 = sin(bucket_cyl_barrel_alpha);
-    const double c40 = cos(bucket_cyl_barrel_gamma);
-    const double c41 = c40*c39;
-    const double c42 = sin(bucket_cyl_barrel_beta);
-    const double c43 = cos(bucket_cyl_barrel_alpha);
-    const double c44 = sin(bucket_cyl_barrel_gamma);
-    const double c45 = c44*c43;
-    const double c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c47 = c40*c43;
-    const double c48 = c39*c44;
-    const double c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c50 = cos(bucket_cyl_barrel_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15);
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23;
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19);
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28);
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36;
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32);
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41);
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49;
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45);
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_zxy_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_zxy_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_alpha = v[15];
-    const double v_boom_cyl_l_barrel_beta = v[16];
-    const double v_boom_cyl_l_barrel_gamma = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_alpha = v[45];
-    const double v_arm_cyl_barrel_beta = v[46];
-    const double v_arm_cyl_barrel_gamma = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_alpha = v[57];
-    const double v_bucket_cyl_barrel_beta = v[58];
-    const double v_bucket_cyl_barrel_gamma = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c26 = cos(boom_cyl_l_barrel_beta);
-    const double c27 = sin(boom_cyl_l_barrel_alpha);
-    const double c28 = sin(boom_cyl_l_barrel_gamma);
-    const double c29 = c27*c28;
-    const double c30 = c26*c29;
-    const double c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c32 = cos(boom_cyl_l_barrel_alpha);
-    const double c33 = c28*c32;
-    const double c34 = c26*c33;
-    const double c35 = -c31*c34 - c25*c30;
-    const double c36 = sin(boom_cyl_l_barrel_beta);
-    const double c37 = cos(boom_cyl_l_barrel_gamma);
-    const double c38 = c32*c37;
-    const double c39 = c38*c36;
-    const double c40 = c27*c37;
-    const double c41 = -c40*c36 - c33;
-    const double c42 = c25*c41 + c31*(-c39 + c29);
-    const double c43 = c29*c36;
-    const double c44 = c33*c36;
-    const double c45 = -c44 - c40;
-    const double c46 = c25*c45 + (c43 - c38)*c31;
-    const double c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma;
-    const double c48 = c34*v_boom_cyl_l_barrel_beta;
-    const double c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha;
-    const double c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c51 = c26*c28*c50;
-    const double c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40;
-    const double c53 = c30*v_boom_cyl_l_barrel_beta;
-    const double c54 = c41*v_boom_cyl_l_barrel_gamma;
-    const double c55 = c45*v_boom_cyl_l_barrel_alpha;
-    const double c56 = c49 + c48 + c47;
-    const double c57 = c28*c36*v_boom_cyl_l_barrel_beta;
-    const double c58 = c26*c37*v_boom_cyl_l_barrel_gamma;
-    const double c59 = -c53 + c54 + c55;
-    const double c60 = -c58 + c57;
-    const double c61 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c62 = cos(arm_cyl_barrel_beta);
-    const double c63 = sin(arm_cyl_barrel_alpha);
-    const double c64 = sin(arm_cyl_barrel_gamma);
-    const double c65 = c63*c64;
-    const double c66 = c62*c65;
-    const double c67 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c68 = cos(arm_cyl_barrel_alpha);
-    const double c69 = c64*c68;
-    const double c70 = c62*c69;
-    const double c71 = -c67*c70 - c61*c66;
-    const double c72 = sin(arm_cyl_barrel_beta);
-    const double c73 = cos(arm_cyl_barrel_gamma);
-    const double c74 = c68*c73;
-    const double c75 = c74*c72;
-    const double c76 = c63*c73;
-    const double c77 = -c76*c72 - c69;
-    const double c78 = c61*c77 + c67*(-c75 + c65);
-    const double c79 = c65*c72;
-    const double c80 = c69*c72;
-    const double c81 = -c80 - c76;
-    const double c82 = c61*c81 + (c79 - c74)*c67;
-    const double c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma;
-    const double c84 = c70*v_arm_cyl_barrel_beta;
-    const double c85 = (c74 - c79)*v_arm_cyl_barrel_alpha;
-    const double c86 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c87 = c62*c64*c86;
-    const double c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76;
-    const double c89 = c66*v_arm_cyl_barrel_beta;
-    const double c90 = c77*v_arm_cyl_barrel_gamma;
-    const double c91 = c81*v_arm_cyl_barrel_alpha;
-    const double c92 = c85 + c84 + c83;
-    const double c93 = c64*c72*v_arm_cyl_barrel_beta;
-    const double c94 = c62*c73*v_arm_cyl_barrel_gamma;
-    const double c95 = -c89 + c90 + c91;
-    const double c96 = -c94 + c93;
-    const double c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c98 = cos(bucket_cyl_barrel_beta);
-    const double c99 = sin(bucket_cyl_barrel_alpha);
-    const double c100 = sin(bucket_cyl_barrel_gamma);
-    const double c101 = c99*c100;
-    const double c102 = c98*c101;
-    const double c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c104 = cos(bucket_cyl_barrel_alpha);
-    const double c105 = c100*c104;
-    const double c106 = c98*c105;
-    const double c107 = -c103*c106 - c97*c102;
-    const double c108 = sin(bucket_cyl_barrel_beta);
-    const double c109 = cos(bucket_cyl_barrel_gamma);
-    const double c110 = c104*c109;
-    const double c111 = c110*c108;
-    const double c112 = c99*c109;
-    const double c113 = -c112*c108 - c105;
-    const double c114 = c97*c113 + c103*(-c111 + c101);
-    const double c115 = c101*c108;
-    const double c116 = c105*c108;
-    const double c117 = -c116 - c112;
-    const double c118 = c97*c117 + (c115 - c110)*c103;
-    const double c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma;
-    const double c120 = c106*v_bucket_cyl_barrel_beta;
-    const double c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha;
-    const double c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c123 = c98*c100*c122;
-    const double c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112;
-    const double c125 = c102*v_bucket_cyl_barrel_beta;
-    const double c126 = c113*v_bucket_cyl_barrel_gamma;
-    const double c127 = c117*v_bucket_cyl_barrel_alpha;
-    const double c128 = c121 + c120 + c119;
-    const double c129 = c100*c108*v_bucket_cyl_barrel_beta;
-    const double c130 = c98*c109*v_bucket_cyl_barrel_gamma;
-    const double c131 = -c125 + c126 + c127;
-    const double c132 = -c130 + c129;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1;
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2;
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3;
-}
-
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_zxy_compute_inputs_bucket_toggle(double t, double *out) {
     out[0] = 0.0;
@@ -5182,415 +4525,6 @@ void excavator_euler_zxy_compute_input_ranges_bucket_toggle(const double *span, 
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_zxy_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_zxy_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c13 = sin(boom_cyl_l_barrel_alpha);
-    const double c14 = cos(boom_cyl_l_barrel_gamma);
-    const double c15 = c14*c13;
-    const double c16 = sin(boom_cyl_l_barrel_beta);
-    const double c17 = cos(boom_cyl_l_barrel_alpha);
-    const double c18 = sin(boom_cyl_l_barrel_gamma);
-    const double c19 = c18*c17;
-    const double c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c21 = c14*c17;
-    const double c22 = c13*c18;
-    const double c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c24 = cos(boom_cyl_l_barrel_beta);
-    const double c25 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c26 = sin(arm_cyl_barrel_alpha);
-    const double c27 = cos(arm_cyl_barrel_gamma);
-    const double c28 = c27*c26;
-    const double c29 = sin(arm_cyl_barrel_beta);
-    const double c30 = cos(arm_cyl_barrel_alpha);
-    const double c31 = sin(arm_cyl_barrel_gamma);
-    const double c32 = c31*c30;
-    const double c33 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c34 = c27*c30;
-    const double c35 = c26*c31;
-    const double c36 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c37 = cos(arm_cyl_barrel_beta);
-    const double c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c39 = sin(bucket_cyl_barrel_alpha);
-    const double c40 = cos(bucket_cyl_barrel_gamma);
-    const double c41 = c40*c39;
-    const double c42 = sin(bucket_cyl_barrel_beta);
-    const double c43 = cos(bucket_cyl_barrel_alpha);
-    const double c44 = sin(bucket_cyl_barrel_gamma);
-    const double c45 = c44*c43;
-    const double c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c47 = c40*c43;
-    const double c48 = c39*c44;
-    const double c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c50 = cos(bucket_cyl_barrel_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15);
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23;
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19);
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28);
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36;
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32);
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41);
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49;
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45);
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_zxy_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_stroke'. */
-void excavator_euler_zxy_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_alpha = v[15];
-    const double v_boom_cyl_l_barrel_beta = v[16];
-    const double v_boom_cyl_l_barrel_gamma = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_alpha = v[45];
-    const double v_arm_cyl_barrel_beta = v[46];
-    const double v_arm_cyl_barrel_gamma = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_alpha = v[57];
-    const double v_bucket_cyl_barrel_beta = v[58];
-    const double v_bucket_cyl_barrel_gamma = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c26 = cos(boom_cyl_l_barrel_beta);
-    const double c27 = sin(boom_cyl_l_barrel_alpha);
-    const double c28 = sin(boom_cyl_l_barrel_gamma);
-    const double c29 = c27*c28;
-    const double c30 = c26*c29;
-    const double c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c32 = cos(boom_cyl_l_barrel_alpha);
-    const double c33 = c28*c32;
-    const double c34 = c26*c33;
-    const double c35 = -c31*c34 - c25*c30;
-    const double c36 = sin(boom_cyl_l_barrel_beta);
-    const double c37 = cos(boom_cyl_l_barrel_gamma);
-    const double c38 = c32*c37;
-    const double c39 = c38*c36;
-    const double c40 = c27*c37;
-    const double c41 = -c40*c36 - c33;
-    const double c42 = c25*c41 + c31*(-c39 + c29);
-    const double c43 = c29*c36;
-    const double c44 = c33*c36;
-    const double c45 = -c44 - c40;
-    const double c46 = c25*c45 + (c43 - c38)*c31;
-    const double c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma;
-    const double c48 = c34*v_boom_cyl_l_barrel_beta;
-    const double c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha;
-    const double c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c51 = c26*c28*c50;
-    const double c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40;
-    const double c53 = c30*v_boom_cyl_l_barrel_beta;
-    const double c54 = c41*v_boom_cyl_l_barrel_gamma;
-    const double c55 = c45*v_boom_cyl_l_barrel_alpha;
-    const double c56 = c49 + c48 + c47;
-    const double c57 = c28*c36*v_boom_cyl_l_barrel_beta;
-    const double c58 = c26*c37*v_boom_cyl_l_barrel_gamma;
-    const double c59 = -c53 + c54 + c55;
-    const double c60 = -c58 + c57;
-    const double c61 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c62 = cos(arm_cyl_barrel_beta);
-    const double c63 = sin(arm_cyl_barrel_alpha);
-    const double c64 = sin(arm_cyl_barrel_gamma);
-    const double c65 = c63*c64;
-    const double c66 = c62*c65;
-    const double c67 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c68 = cos(arm_cyl_barrel_alpha);
-    const double c69 = c64*c68;
-    const double c70 = c62*c69;
-    const double c71 = -c67*c70 - c61*c66;
-    const double c72 = sin(arm_cyl_barrel_beta);
-    const double c73 = cos(arm_cyl_barrel_gamma);
-    const double c74 = c68*c73;
-    const double c75 = c74*c72;
-    const double c76 = c63*c73;
-    const double c77 = -c76*c72 - c69;
-    const double c78 = c61*c77 + c67*(-c75 + c65);
-    const double c79 = c65*c72;
-    const double c80 = c69*c72;
-    const double c81 = -c80 - c76;
-    const double c82 = c61*c81 + (c79 - c74)*c67;
-    const double c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma;
-    const double c84 = c70*v_arm_cyl_barrel_beta;
-    const double c85 = (c74 - c79)*v_arm_cyl_barrel_alpha;
-    const double c86 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c87 = c62*c64*c86;
-    const double c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76;
-    const double c89 = c66*v_arm_cyl_barrel_beta;
-    const double c90 = c77*v_arm_cyl_barrel_gamma;
-    const double c91 = c81*v_arm_cyl_barrel_alpha;
-    const double c92 = c85 + c84 + c83;
-    const double c93 = c64*c72*v_arm_cyl_barrel_beta;
-    const double c94 = c62*c73*v_arm_cyl_barrel_gamma;
-    const double c95 = -c89 + c90 + c91;
-    const double c96 = -c94 + c93;
-    const double c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c98 = cos(bucket_cyl_barrel_beta);
-    const double c99 = sin(bucket_cyl_barrel_alpha);
-    const double c100 = sin(bucket_cyl_barrel_gamma);
-    const double c101 = c99*c100;
-    const double c102 = c98*c101;
-    const double c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c104 = cos(bucket_cyl_barrel_alpha);
-    const double c105 = c100*c104;
-    const double c106 = c98*c105;
-    const double c107 = -c103*c106 - c97*c102;
-    const double c108 = sin(bucket_cyl_barrel_beta);
-    const double c109 = cos(bucket_cyl_barrel_gamma);
-    const double c110 = c104*c109;
-    const double c111 = c110*c108;
-    const double c112 = c99*c109;
-    const double c113 = -c112*c108 - c105;
-    const double c114 = c97*c113 + c103*(-c111 + c101);
-    const double c115 = c101*c108;
-    const double c116 = c105*c108;
-    const double c117 = -c116 - c112;
-    const double c118 = c97*c117 + (c115 - c110)*c103;
-    const double c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma;
-    const double c120 = c106*v_bucket_cyl_barrel_beta;
-    const double c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha;
-    const double c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c123 = c98*c100*c122;
-    const double c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112;
-    const double c125 = c102*v_bucket_cyl_barrel_beta;
-    const double c126 = c113*v_bucket_cyl_barrel_gamma;
-    const double c127 = c117*v_bucket_cyl_barrel_alpha;
-    const double c128 = c121 + c120 + c119;
-    const double c129 = c100*c108*v_bucket_cyl_barrel_beta;
-    const double c130 = c98*c109*v_bucket_cyl_barrel_gamma;
-    const double c131 = -c125 + c126 + c127;
-    const double c132 = -c130 + c129;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1;
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2;
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3;
-}
-
 /* Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_zxy_compute_inputs_bucket_stroke(double t, double *out) {
     out[0] = 0.0;
@@ -5641,415 +4575,6 @@ void excavator_euler_zxy_compute_input_ranges_bucket_stroke(const double *span, 
     out[22] = r1.hi;
     out[11] = r1.lo;
     out[23] = r1.hi;
-}
-
-/* Phi of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_zxy_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_zxy_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c13 = sin(boom_cyl_l_barrel_alpha);
-    const double c14 = cos(boom_cyl_l_barrel_gamma);
-    const double c15 = c14*c13;
-    const double c16 = sin(boom_cyl_l_barrel_beta);
-    const double c17 = cos(boom_cyl_l_barrel_alpha);
-    const double c18 = sin(boom_cyl_l_barrel_gamma);
-    const double c19 = c18*c17;
-    const double c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c21 = c14*c17;
-    const double c22 = c13*c18;
-    const double c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c24 = cos(boom_cyl_l_barrel_beta);
-    const double c25 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c26 = sin(arm_cyl_barrel_alpha);
-    const double c27 = cos(arm_cyl_barrel_gamma);
-    const double c28 = c27*c26;
-    const double c29 = sin(arm_cyl_barrel_beta);
-    const double c30 = cos(arm_cyl_barrel_alpha);
-    const double c31 = sin(arm_cyl_barrel_gamma);
-    const double c32 = c31*c30;
-    const double c33 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c34 = c27*c30;
-    const double c35 = c26*c31;
-    const double c36 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c37 = cos(arm_cyl_barrel_beta);
-    const double c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c39 = sin(bucket_cyl_barrel_alpha);
-    const double c40 = cos(bucket_cyl_barrel_gamma);
-    const double c41 = c40*c39;
-    const double c42 = sin(bucket_cyl_barrel_beta);
-    const double c43 = cos(bucket_cyl_barrel_alpha);
-    const double c44 = sin(bucket_cyl_barrel_gamma);
-    const double c45 = c44*c43;
-    const double c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c47 = c40*c43;
-    const double c48 = c39*c44;
-    const double c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c50 = cos(bucket_cyl_barrel_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15);
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23;
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19);
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28);
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36;
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32);
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41);
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49;
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45);
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_zxy_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_zxy_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_alpha = v[15];
-    const double v_boom_cyl_l_barrel_beta = v[16];
-    const double v_boom_cyl_l_barrel_gamma = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_alpha = v[45];
-    const double v_arm_cyl_barrel_beta = v[46];
-    const double v_arm_cyl_barrel_gamma = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_alpha = v[57];
-    const double v_bucket_cyl_barrel_beta = v[58];
-    const double v_bucket_cyl_barrel_gamma = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c26 = cos(boom_cyl_l_barrel_beta);
-    const double c27 = sin(boom_cyl_l_barrel_alpha);
-    const double c28 = sin(boom_cyl_l_barrel_gamma);
-    const double c29 = c27*c28;
-    const double c30 = c26*c29;
-    const double c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c32 = cos(boom_cyl_l_barrel_alpha);
-    const double c33 = c28*c32;
-    const double c34 = c26*c33;
-    const double c35 = -c31*c34 - c25*c30;
-    const double c36 = sin(boom_cyl_l_barrel_beta);
-    const double c37 = cos(boom_cyl_l_barrel_gamma);
-    const double c38 = c32*c37;
-    const double c39 = c38*c36;
-    const double c40 = c27*c37;
-    const double c41 = -c40*c36 - c33;
-    const double c42 = c25*c41 + c31*(-c39 + c29);
-    const double c43 = c29*c36;
-    const double c44 = c33*c36;
-    const double c45 = -c44 - c40;
-    const double c46 = c25*c45 + (c43 - c38)*c31;
-    const double c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma;
-    const double c48 = c34*v_boom_cyl_l_barrel_beta;
-    const double c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha;
-    const double c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c51 = c26*c28*c50;
-    const double c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40;
-    const double c53 = c30*v_boom_cyl_l_barrel_beta;
-    const double c54 = c41*v_boom_cyl_l_barrel_gamma;
-    const double c55 = c45*v_boom_cyl_l_barrel_alpha;
-    const double c56 = c49 + c48 + c47;
-    const double c57 = c28*c36*v_boom_cyl_l_barrel_beta;
-    const double c58 = c26*c37*v_boom_cyl_l_barrel_gamma;
-    const double c59 = -c53 + c54 + c55;
-    const double c60 = -c58 + c57;
-    const double c61 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c62 = cos(arm_cyl_barrel_beta);
-    const double c63 = sin(arm_cyl_barrel_alpha);
-    const double c64 = sin(arm_cyl_barrel_gamma);
-    const double c65 = c63*c64;
-    const double c66 = c62*c65;
-    const double c67 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c68 = cos(arm_cyl_barrel_alpha);
-    const double c69 = c64*c68;
-    const double c70 = c62*c69;
-    const double c71 = -c67*c70 - c61*c66;
-    const double c72 = sin(arm_cyl_barrel_beta);
-    const double c73 = cos(arm_cyl_barrel_gamma);
-    const double c74 = c68*c73;
-    const double c75 = c74*c72;
-    const double c76 = c63*c73;
-    const double c77 = -c76*c72 - c69;
-    const double c78 = c61*c77 + c67*(-c75 + c65);
-    const double c79 = c65*c72;
-    const double c80 = c69*c72;
-    const double c81 = -c80 - c76;
-    const double c82 = c61*c81 + (c79 - c74)*c67;
-    const double c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma;
-    const double c84 = c70*v_arm_cyl_barrel_beta;
-    const double c85 = (c74 - c79)*v_arm_cyl_barrel_alpha;
-    const double c86 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c87 = c62*c64*c86;
-    const double c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76;
-    const double c89 = c66*v_arm_cyl_barrel_beta;
-    const double c90 = c77*v_arm_cyl_barrel_gamma;
-    const double c91 = c81*v_arm_cyl_barrel_alpha;
-    const double c92 = c85 + c84 + c83;
-    const double c93 = c64*c72*v_arm_cyl_barrel_beta;
-    const double c94 = c62*c73*v_arm_cyl_barrel_gamma;
-    const double c95 = -c89 + c90 + c91;
-    const double c96 = -c94 + c93;
-    const double c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c98 = cos(bucket_cyl_barrel_beta);
-    const double c99 = sin(bucket_cyl_barrel_alpha);
-    const double c100 = sin(bucket_cyl_barrel_gamma);
-    const double c101 = c99*c100;
-    const double c102 = c98*c101;
-    const double c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c104 = cos(bucket_cyl_barrel_alpha);
-    const double c105 = c100*c104;
-    const double c106 = c98*c105;
-    const double c107 = -c103*c106 - c97*c102;
-    const double c108 = sin(bucket_cyl_barrel_beta);
-    const double c109 = cos(bucket_cyl_barrel_gamma);
-    const double c110 = c104*c109;
-    const double c111 = c110*c108;
-    const double c112 = c99*c109;
-    const double c113 = -c112*c108 - c105;
-    const double c114 = c97*c113 + c103*(-c111 + c101);
-    const double c115 = c101*c108;
-    const double c116 = c105*c108;
-    const double c117 = -c116 - c112;
-    const double c118 = c97*c117 + (c115 - c110)*c103;
-    const double c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma;
-    const double c120 = c106*v_bucket_cyl_barrel_beta;
-    const double c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha;
-    const double c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c123 = c98*c100*c122;
-    const double c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112;
-    const double c125 = c102*v_bucket_cyl_barrel_beta;
-    const double c126 = c113*v_bucket_cyl_barrel_gamma;
-    const double c127 = c117*v_bucket_cyl_barrel_alpha;
-    const double c128 = c121 + c120 + c119;
-    const double c129 = c100*c108*v_bucket_cyl_barrel_beta;
-    const double c130 = c98*c109*v_bucket_cyl_barrel_gamma;
-    const double c131 = -c125 + c126 + c127;
-    const double c132 = -c130 + c129;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1;
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2;
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3;
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -6112,419 +4637,6 @@ void excavator_euler_zxy_compute_input_ranges_bucket_near_toggle(const double *s
     out[22] = r1.hi;
     out[11] = r15.lo;
     out[23] = r15.hi;
-}
-
-/* Phi of the driver rows of case 'digging_fast'. */
-void excavator_euler_zxy_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
-
-/* Phi_q values of the driver rows of case 'digging_fast'. */
-void excavator_euler_zxy_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c13 = sin(boom_cyl_l_barrel_alpha);
-    const double c14 = cos(boom_cyl_l_barrel_gamma);
-    const double c15 = c14*c13;
-    const double c16 = sin(boom_cyl_l_barrel_beta);
-    const double c17 = cos(boom_cyl_l_barrel_alpha);
-    const double c18 = sin(boom_cyl_l_barrel_gamma);
-    const double c19 = c18*c17;
-    const double c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c21 = c14*c17;
-    const double c22 = c13*c18;
-    const double c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c24 = cos(boom_cyl_l_barrel_beta);
-    const double c25 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c26 = sin(arm_cyl_barrel_alpha);
-    const double c27 = cos(arm_cyl_barrel_gamma);
-    const double c28 = c27*c26;
-    const double c29 = sin(arm_cyl_barrel_beta);
-    const double c30 = cos(arm_cyl_barrel_alpha);
-    const double c31 = sin(arm_cyl_barrel_gamma);
-    const double c32 = c31*c30;
-    const double c33 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c34 = c27*c30;
-    const double c35 = c26*c31;
-    const double c36 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c37 = cos(arm_cyl_barrel_beta);
-    const double c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c39 = sin(bucket_cyl_barrel_alpha);
-    const double c40 = cos(bucket_cyl_barrel_gamma);
-    const double c41 = c40*c39;
-    const double c42 = sin(bucket_cyl_barrel_beta);
-    const double c43 = cos(bucket_cyl_barrel_alpha);
-    const double c44 = sin(bucket_cyl_barrel_gamma);
-    const double c45 = c44*c43;
-    const double c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c47 = c40*c43;
-    const double c48 = c39*c44;
-    const double c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c50 = cos(bucket_cyl_barrel_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15);
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23;
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19);
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28);
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36;
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32);
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41);
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49;
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45);
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_fast'. */
-void excavator_euler_zxy_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_fast'. */
-void excavator_euler_zxy_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_alpha = v[15];
-    const double v_boom_cyl_l_barrel_beta = v[16];
-    const double v_boom_cyl_l_barrel_gamma = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_alpha = v[45];
-    const double v_arm_cyl_barrel_beta = v[46];
-    const double v_arm_cyl_barrel_gamma = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_alpha = v[57];
-    const double v_bucket_cyl_barrel_beta = v[58];
-    const double v_bucket_cyl_barrel_gamma = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c26 = cos(boom_cyl_l_barrel_beta);
-    const double c27 = sin(boom_cyl_l_barrel_alpha);
-    const double c28 = sin(boom_cyl_l_barrel_gamma);
-    const double c29 = c27*c28;
-    const double c30 = c26*c29;
-    const double c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c32 = cos(boom_cyl_l_barrel_alpha);
-    const double c33 = c28*c32;
-    const double c34 = c26*c33;
-    const double c35 = -c31*c34 - c25*c30;
-    const double c36 = sin(boom_cyl_l_barrel_beta);
-    const double c37 = cos(boom_cyl_l_barrel_gamma);
-    const double c38 = c32*c37;
-    const double c39 = c38*c36;
-    const double c40 = c27*c37;
-    const double c41 = -c40*c36 - c33;
-    const double c42 = c25*c41 + c31*(-c39 + c29);
-    const double c43 = c29*c36;
-    const double c44 = c33*c36;
-    const double c45 = -c44 - c40;
-    const double c46 = c25*c45 + (c43 - c38)*c31;
-    const double c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma;
-    const double c48 = c34*v_boom_cyl_l_barrel_beta;
-    const double c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha;
-    const double c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c51 = c26*c28*c50;
-    const double c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40;
-    const double c53 = c30*v_boom_cyl_l_barrel_beta;
-    const double c54 = c41*v_boom_cyl_l_barrel_gamma;
-    const double c55 = c45*v_boom_cyl_l_barrel_alpha;
-    const double c56 = c49 + c48 + c47;
-    const double c57 = c28*c36*v_boom_cyl_l_barrel_beta;
-    const double c58 = c26*c37*v_boom_cyl_l_barrel_gamma;
-    const double c59 = -c53 + c54 + c55;
-    const double c60 = -c58 + c57;
-    const double c61 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c62 = cos(arm_cyl_barrel_beta);
-    const double c63 = sin(arm_cyl_barrel_alpha);
-    const double c64 = sin(arm_cyl_barrel_gamma);
-    const double c65 = c63*c64;
-    const double c66 = c62*c65;
-    const double c67 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c68 = cos(arm_cyl_barrel_alpha);
-    const double c69 = c64*c68;
-    const double c70 = c62*c69;
-    const double c71 = -c67*c70 - c61*c66;
-    const double c72 = sin(arm_cyl_barrel_beta);
-    const double c73 = cos(arm_cyl_barrel_gamma);
-    const double c74 = c68*c73;
-    const double c75 = c74*c72;
-    const double c76 = c63*c73;
-    const double c77 = -c76*c72 - c69;
-    const double c78 = c61*c77 + c67*(-c75 + c65);
-    const double c79 = c65*c72;
-    const double c80 = c69*c72;
-    const double c81 = -c80 - c76;
-    const double c82 = c61*c81 + (c79 - c74)*c67;
-    const double c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma;
-    const double c84 = c70*v_arm_cyl_barrel_beta;
-    const double c85 = (c74 - c79)*v_arm_cyl_barrel_alpha;
-    const double c86 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c87 = c62*c64*c86;
-    const double c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76;
-    const double c89 = c66*v_arm_cyl_barrel_beta;
-    const double c90 = c77*v_arm_cyl_barrel_gamma;
-    const double c91 = c81*v_arm_cyl_barrel_alpha;
-    const double c92 = c85 + c84 + c83;
-    const double c93 = c64*c72*v_arm_cyl_barrel_beta;
-    const double c94 = c62*c73*v_arm_cyl_barrel_gamma;
-    const double c95 = -c89 + c90 + c91;
-    const double c96 = -c94 + c93;
-    const double c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c98 = cos(bucket_cyl_barrel_beta);
-    const double c99 = sin(bucket_cyl_barrel_alpha);
-    const double c100 = sin(bucket_cyl_barrel_gamma);
-    const double c101 = c99*c100;
-    const double c102 = c98*c101;
-    const double c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c104 = cos(bucket_cyl_barrel_alpha);
-    const double c105 = c100*c104;
-    const double c106 = c98*c105;
-    const double c107 = -c103*c106 - c97*c102;
-    const double c108 = sin(bucket_cyl_barrel_beta);
-    const double c109 = cos(bucket_cyl_barrel_gamma);
-    const double c110 = c104*c109;
-    const double c111 = c110*c108;
-    const double c112 = c99*c109;
-    const double c113 = -c112*c108 - c105;
-    const double c114 = c97*c113 + c103*(-c111 + c101);
-    const double c115 = c101*c108;
-    const double c116 = c105*c108;
-    const double c117 = -c116 - c112;
-    const double c118 = c97*c117 + (c115 - c110)*c103;
-    const double c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma;
-    const double c120 = c106*v_bucket_cyl_barrel_beta;
-    const double c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha;
-    const double c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c123 = c98*c100*c122;
-    const double c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112;
-    const double c125 = c102*v_bucket_cyl_barrel_beta;
-    const double c126 = c113*v_bucket_cyl_barrel_gamma;
-    const double c127 = c117*v_bucket_cyl_barrel_alpha;
-    const double c128 = c121 + c120 + c119;
-    const double c129 = c100*c108*v_bucket_cyl_barrel_beta;
-    const double c130 = c98*c109*v_bucket_cyl_barrel_gamma;
-    const double c131 = -c125 + c126 + c127;
-    const double c132 = -c130 + c129;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1;
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2;
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3;
 }
 
 /* Driver inputs of case 'digging_fast' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -6746,415 +4858,6 @@ void excavator_euler_zxy_compute_input_ranges_digging_fast(const double *span, d
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'digging_paced'. */
-void excavator_euler_zxy_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'digging_paced'. */
-void excavator_euler_zxy_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c13 = sin(boom_cyl_l_barrel_alpha);
-    const double c14 = cos(boom_cyl_l_barrel_gamma);
-    const double c15 = c14*c13;
-    const double c16 = sin(boom_cyl_l_barrel_beta);
-    const double c17 = cos(boom_cyl_l_barrel_alpha);
-    const double c18 = sin(boom_cyl_l_barrel_gamma);
-    const double c19 = c18*c17;
-    const double c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c21 = c14*c17;
-    const double c22 = c13*c18;
-    const double c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c24 = cos(boom_cyl_l_barrel_beta);
-    const double c25 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c26 = sin(arm_cyl_barrel_alpha);
-    const double c27 = cos(arm_cyl_barrel_gamma);
-    const double c28 = c27*c26;
-    const double c29 = sin(arm_cyl_barrel_beta);
-    const double c30 = cos(arm_cyl_barrel_alpha);
-    const double c31 = sin(arm_cyl_barrel_gamma);
-    const double c32 = c31*c30;
-    const double c33 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c34 = c27*c30;
-    const double c35 = c26*c31;
-    const double c36 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c37 = cos(arm_cyl_barrel_beta);
-    const double c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c39 = sin(bucket_cyl_barrel_alpha);
-    const double c40 = cos(bucket_cyl_barrel_gamma);
-    const double c41 = c40*c39;
-    const double c42 = sin(bucket_cyl_barrel_beta);
-    const double c43 = cos(bucket_cyl_barrel_alpha);
-    const double c44 = sin(bucket_cyl_barrel_gamma);
-    const double c45 = c44*c43;
-    const double c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c47 = c40*c43;
-    const double c48 = c39*c44;
-    const double c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c50 = cos(bucket_cyl_barrel_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15);
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23;
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19);
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28);
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36;
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32);
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41);
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49;
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45);
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_paced'. */
-void excavator_euler_zxy_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_paced'. */
-void excavator_euler_zxy_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_alpha = v[15];
-    const double v_boom_cyl_l_barrel_beta = v[16];
-    const double v_boom_cyl_l_barrel_gamma = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_alpha = v[45];
-    const double v_arm_cyl_barrel_beta = v[46];
-    const double v_arm_cyl_barrel_gamma = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_alpha = v[57];
-    const double v_bucket_cyl_barrel_beta = v[58];
-    const double v_bucket_cyl_barrel_gamma = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c26 = cos(boom_cyl_l_barrel_beta);
-    const double c27 = sin(boom_cyl_l_barrel_alpha);
-    const double c28 = sin(boom_cyl_l_barrel_gamma);
-    const double c29 = c27*c28;
-    const double c30 = c26*c29;
-    const double c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c32 = cos(boom_cyl_l_barrel_alpha);
-    const double c33 = c28*c32;
-    const double c34 = c26*c33;
-    const double c35 = -c31*c34 - c25*c30;
-    const double c36 = sin(boom_cyl_l_barrel_beta);
-    const double c37 = cos(boom_cyl_l_barrel_gamma);
-    const double c38 = c32*c37;
-    const double c39 = c38*c36;
-    const double c40 = c27*c37;
-    const double c41 = -c40*c36 - c33;
-    const double c42 = c25*c41 + c31*(-c39 + c29);
-    const double c43 = c29*c36;
-    const double c44 = c33*c36;
-    const double c45 = -c44 - c40;
-    const double c46 = c25*c45 + (c43 - c38)*c31;
-    const double c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma;
-    const double c48 = c34*v_boom_cyl_l_barrel_beta;
-    const double c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha;
-    const double c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c51 = c26*c28*c50;
-    const double c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40;
-    const double c53 = c30*v_boom_cyl_l_barrel_beta;
-    const double c54 = c41*v_boom_cyl_l_barrel_gamma;
-    const double c55 = c45*v_boom_cyl_l_barrel_alpha;
-    const double c56 = c49 + c48 + c47;
-    const double c57 = c28*c36*v_boom_cyl_l_barrel_beta;
-    const double c58 = c26*c37*v_boom_cyl_l_barrel_gamma;
-    const double c59 = -c53 + c54 + c55;
-    const double c60 = -c58 + c57;
-    const double c61 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c62 = cos(arm_cyl_barrel_beta);
-    const double c63 = sin(arm_cyl_barrel_alpha);
-    const double c64 = sin(arm_cyl_barrel_gamma);
-    const double c65 = c63*c64;
-    const double c66 = c62*c65;
-    const double c67 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c68 = cos(arm_cyl_barrel_alpha);
-    const double c69 = c64*c68;
-    const double c70 = c62*c69;
-    const double c71 = -c67*c70 - c61*c66;
-    const double c72 = sin(arm_cyl_barrel_beta);
-    const double c73 = cos(arm_cyl_barrel_gamma);
-    const double c74 = c68*c73;
-    const double c75 = c74*c72;
-    const double c76 = c63*c73;
-    const double c77 = -c76*c72 - c69;
-    const double c78 = c61*c77 + c67*(-c75 + c65);
-    const double c79 = c65*c72;
-    const double c80 = c69*c72;
-    const double c81 = -c80 - c76;
-    const double c82 = c61*c81 + (c79 - c74)*c67;
-    const double c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma;
-    const double c84 = c70*v_arm_cyl_barrel_beta;
-    const double c85 = (c74 - c79)*v_arm_cyl_barrel_alpha;
-    const double c86 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c87 = c62*c64*c86;
-    const double c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76;
-    const double c89 = c66*v_arm_cyl_barrel_beta;
-    const double c90 = c77*v_arm_cyl_barrel_gamma;
-    const double c91 = c81*v_arm_cyl_barrel_alpha;
-    const double c92 = c85 + c84 + c83;
-    const double c93 = c64*c72*v_arm_cyl_barrel_beta;
-    const double c94 = c62*c73*v_arm_cyl_barrel_gamma;
-    const double c95 = -c89 + c90 + c91;
-    const double c96 = -c94 + c93;
-    const double c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c98 = cos(bucket_cyl_barrel_beta);
-    const double c99 = sin(bucket_cyl_barrel_alpha);
-    const double c100 = sin(bucket_cyl_barrel_gamma);
-    const double c101 = c99*c100;
-    const double c102 = c98*c101;
-    const double c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c104 = cos(bucket_cyl_barrel_alpha);
-    const double c105 = c100*c104;
-    const double c106 = c98*c105;
-    const double c107 = -c103*c106 - c97*c102;
-    const double c108 = sin(bucket_cyl_barrel_beta);
-    const double c109 = cos(bucket_cyl_barrel_gamma);
-    const double c110 = c104*c109;
-    const double c111 = c110*c108;
-    const double c112 = c99*c109;
-    const double c113 = -c112*c108 - c105;
-    const double c114 = c97*c113 + c103*(-c111 + c101);
-    const double c115 = c101*c108;
-    const double c116 = c105*c108;
-    const double c117 = -c116 - c112;
-    const double c118 = c97*c117 + (c115 - c110)*c103;
-    const double c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma;
-    const double c120 = c106*v_bucket_cyl_barrel_beta;
-    const double c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha;
-    const double c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c123 = c98*c100*c122;
-    const double c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112;
-    const double c125 = c102*v_bucket_cyl_barrel_beta;
-    const double c126 = c113*v_bucket_cyl_barrel_gamma;
-    const double c127 = c117*v_bucket_cyl_barrel_alpha;
-    const double c128 = c121 + c120 + c119;
-    const double c129 = c100*c108*v_bucket_cyl_barrel_beta;
-    const double c130 = c98*c109*v_bucket_cyl_barrel_gamma;
-    const double c131 = -c125 + c126 + c127;
-    const double c132 = -c130 + c129;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1;
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2;
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3;
-}
-
 /* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_zxy_compute_inputs_digging_paced(double t, double *out) {
     const double c0 = -4.0/7.0*t;
@@ -7374,415 +5077,6 @@ void excavator_euler_zxy_compute_input_ranges_digging_paced(const double *span, 
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'oscillation'. */
-void excavator_euler_zxy_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'oscillation'. */
-void excavator_euler_zxy_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
-    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
-    const double c0 = sin(u0);
-    const double c1 = sin(upper_alpha);
-    const double c2 = cos(upper_gamma);
-    const double c3 = c2*c1;
-    const double c4 = sin(upper_beta);
-    const double c5 = cos(upper_alpha);
-    const double c6 = sin(upper_gamma);
-    const double c7 = c6*c5;
-    const double c8 = cos(u0);
-    const double c9 = c2*c5;
-    const double c10 = c1*c6;
-    const double c11 = cos(upper_beta);
-    const double c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c13 = sin(boom_cyl_l_barrel_alpha);
-    const double c14 = cos(boom_cyl_l_barrel_gamma);
-    const double c15 = c14*c13;
-    const double c16 = sin(boom_cyl_l_barrel_beta);
-    const double c17 = cos(boom_cyl_l_barrel_alpha);
-    const double c18 = sin(boom_cyl_l_barrel_gamma);
-    const double c19 = c18*c17;
-    const double c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c21 = c14*c17;
-    const double c22 = c13*c18;
-    const double c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c24 = cos(boom_cyl_l_barrel_beta);
-    const double c25 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c26 = sin(arm_cyl_barrel_alpha);
-    const double c27 = cos(arm_cyl_barrel_gamma);
-    const double c28 = c27*c26;
-    const double c29 = sin(arm_cyl_barrel_beta);
-    const double c30 = cos(arm_cyl_barrel_alpha);
-    const double c31 = sin(arm_cyl_barrel_gamma);
-    const double c32 = c31*c30;
-    const double c33 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c34 = c27*c30;
-    const double c35 = c26*c31;
-    const double c36 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c37 = cos(arm_cyl_barrel_beta);
-    const double c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c39 = sin(bucket_cyl_barrel_alpha);
-    const double c40 = cos(bucket_cyl_barrel_gamma);
-    const double c41 = c40*c39;
-    const double c42 = sin(bucket_cyl_barrel_beta);
-    const double c43 = cos(bucket_cyl_barrel_alpha);
-    const double c44 = sin(bucket_cyl_barrel_gamma);
-    const double c45 = c44*c43;
-    const double c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c47 = c40*c43;
-    const double c48 = c39*c44;
-    const double c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c50 = cos(bucket_cyl_barrel_beta);
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
-    out[1] = -c0*c11*c10 - c8*c7*c11;
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15);
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23;
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19);
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28);
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36;
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32);
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41);
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49;
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45);
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'oscillation'. */
-void excavator_euler_zxy_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'oscillation'. */
-void excavator_euler_zxy_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_alpha = q[3];
-    const double upper_beta = q[4];
-    const double upper_gamma = q[5];
-    const double boom_cyl_l_barrel_x = q[12];
-    const double boom_cyl_l_barrel_y = q[13];
-    const double boom_cyl_l_barrel_z = q[14];
-    const double boom_cyl_l_barrel_alpha = q[15];
-    const double boom_cyl_l_barrel_beta = q[16];
-    const double boom_cyl_l_barrel_gamma = q[17];
-    const double boom_cyl_l_rod_x = q[18];
-    const double boom_cyl_l_rod_y = q[19];
-    const double boom_cyl_l_rod_z = q[20];
-    const double arm_cyl_barrel_x = q[42];
-    const double arm_cyl_barrel_y = q[43];
-    const double arm_cyl_barrel_z = q[44];
-    const double arm_cyl_barrel_alpha = q[45];
-    const double arm_cyl_barrel_beta = q[46];
-    const double arm_cyl_barrel_gamma = q[47];
-    const double arm_cyl_rod_x = q[48];
-    const double arm_cyl_rod_y = q[49];
-    const double arm_cyl_rod_z = q[50];
-    const double bucket_cyl_barrel_x = q[54];
-    const double bucket_cyl_barrel_y = q[55];
-    const double bucket_cyl_barrel_z = q[56];
-    const double bucket_cyl_barrel_alpha = q[57];
-    const double bucket_cyl_barrel_beta = q[58];
-    const double bucket_cyl_barrel_gamma = q[59];
-    const double bucket_cyl_rod_x = q[60];
-    const double bucket_cyl_rod_y = q[61];
-    const double bucket_cyl_rod_z = q[62];
-    const double v_upper_alpha = v[3];
-    const double v_upper_beta = v[4];
-    const double v_upper_gamma = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_alpha = v[15];
-    const double v_boom_cyl_l_barrel_beta = v[16];
-    const double v_boom_cyl_l_barrel_gamma = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_alpha = v[45];
-    const double v_arm_cyl_barrel_beta = v[46];
-    const double v_arm_cyl_barrel_gamma = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_alpha = v[57];
-    const double v_bucket_cyl_barrel_beta = v[58];
-    const double v_bucket_cyl_barrel_gamma = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
-    const double c0 = cos(u0);
-    const double c1 = sin(u0);
-    const double c2 = cos(upper_alpha);
-    const double c3 = cos(upper_gamma);
-    const double c4 = c2*c3;
-    const double c5 = sin(upper_beta);
-    const double c6 = sin(upper_alpha);
-    const double c7 = sin(upper_gamma);
-    const double c8 = c6*c7;
-    const double c9 = c5*c8;
-    const double c10 = c3*c6;
-    const double c11 = c2*c7;
-    const double c12 = c5*c11;
-    const double c13 = (-c12 - c10)*c0;
-    const double c14 = -c13 + (c9 - c4)*c1;
-    const double c15 = cos(upper_beta);
-    const double c16 = c0*c15;
-    const double c17 = c8*c16;
-    const double c18 = c1*c15;
-    const double c19 = c11*c18;
-    const double c20 = -c19 + c17;
-    const double c21 = c4*c5;
-    const double c22 = c0*(-c5*c10 - c11);
-    const double c23 = -c22 + c1*(-c21 + c8);
-    const double c24 = -c4*c16 - c10*c18;
-    const double c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c26 = cos(boom_cyl_l_barrel_beta);
-    const double c27 = sin(boom_cyl_l_barrel_alpha);
-    const double c28 = sin(boom_cyl_l_barrel_gamma);
-    const double c29 = c27*c28;
-    const double c30 = c26*c29;
-    const double c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c32 = cos(boom_cyl_l_barrel_alpha);
-    const double c33 = c28*c32;
-    const double c34 = c26*c33;
-    const double c35 = -c31*c34 - c25*c30;
-    const double c36 = sin(boom_cyl_l_barrel_beta);
-    const double c37 = cos(boom_cyl_l_barrel_gamma);
-    const double c38 = c32*c37;
-    const double c39 = c38*c36;
-    const double c40 = c27*c37;
-    const double c41 = -c40*c36 - c33;
-    const double c42 = c25*c41 + c31*(-c39 + c29);
-    const double c43 = c29*c36;
-    const double c44 = c33*c36;
-    const double c45 = -c44 - c40;
-    const double c46 = c25*c45 + (c43 - c38)*c31;
-    const double c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma;
-    const double c48 = c34*v_boom_cyl_l_barrel_beta;
-    const double c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha;
-    const double c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c51 = c26*c28*c50;
-    const double c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40;
-    const double c53 = c30*v_boom_cyl_l_barrel_beta;
-    const double c54 = c41*v_boom_cyl_l_barrel_gamma;
-    const double c55 = c45*v_boom_cyl_l_barrel_alpha;
-    const double c56 = c49 + c48 + c47;
-    const double c57 = c28*c36*v_boom_cyl_l_barrel_beta;
-    const double c58 = c26*c37*v_boom_cyl_l_barrel_gamma;
-    const double c59 = -c53 + c54 + c55;
-    const double c60 = -c58 + c57;
-    const double c61 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c62 = cos(arm_cyl_barrel_beta);
-    const double c63 = sin(arm_cyl_barrel_alpha);
-    const double c64 = sin(arm_cyl_barrel_gamma);
-    const double c65 = c63*c64;
-    const double c66 = c62*c65;
-    const double c67 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c68 = cos(arm_cyl_barrel_alpha);
-    const double c69 = c64*c68;
-    const double c70 = c62*c69;
-    const double c71 = -c67*c70 - c61*c66;
-    const double c72 = sin(arm_cyl_barrel_beta);
-    const double c73 = cos(arm_cyl_barrel_gamma);
-    const double c74 = c68*c73;
-    const double c75 = c74*c72;
-    const double c76 = c63*c73;
-    const double c77 = -c76*c72 - c69;
-    const double c78 = c61*c77 + c67*(-c75 + c65);
-    const double c79 = c65*c72;
-    const double c80 = c69*c72;
-    const double c81 = -c80 - c76;
-    const double c82 = c61*c81 + (c79 - c74)*c67;
-    const double c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma;
-    const double c84 = c70*v_arm_cyl_barrel_beta;
-    const double c85 = (c74 - c79)*v_arm_cyl_barrel_alpha;
-    const double c86 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c87 = c62*c64*c86;
-    const double c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76;
-    const double c89 = c66*v_arm_cyl_barrel_beta;
-    const double c90 = c77*v_arm_cyl_barrel_gamma;
-    const double c91 = c81*v_arm_cyl_barrel_alpha;
-    const double c92 = c85 + c84 + c83;
-    const double c93 = c64*c72*v_arm_cyl_barrel_beta;
-    const double c94 = c62*c73*v_arm_cyl_barrel_gamma;
-    const double c95 = -c89 + c90 + c91;
-    const double c96 = -c94 + c93;
-    const double c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c98 = cos(bucket_cyl_barrel_beta);
-    const double c99 = sin(bucket_cyl_barrel_alpha);
-    const double c100 = sin(bucket_cyl_barrel_gamma);
-    const double c101 = c99*c100;
-    const double c102 = c98*c101;
-    const double c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c104 = cos(bucket_cyl_barrel_alpha);
-    const double c105 = c100*c104;
-    const double c106 = c98*c105;
-    const double c107 = -c103*c106 - c97*c102;
-    const double c108 = sin(bucket_cyl_barrel_beta);
-    const double c109 = cos(bucket_cyl_barrel_gamma);
-    const double c110 = c104*c109;
-    const double c111 = c110*c108;
-    const double c112 = c99*c109;
-    const double c113 = -c112*c108 - c105;
-    const double c114 = c97*c113 + c103*(-c111 + c101);
-    const double c115 = c101*c108;
-    const double c116 = c105*c108;
-    const double c117 = -c116 - c112;
-    const double c118 = c97*c117 + (c115 - c110)*c103;
-    const double c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma;
-    const double c120 = c106*v_bucket_cyl_barrel_beta;
-    const double c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha;
-    const double c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c123 = c98*c100*c122;
-    const double c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112;
-    const double c125 = c102*v_bucket_cyl_barrel_beta;
-    const double c126 = c113*v_bucket_cyl_barrel_gamma;
-    const double c127 = c117*v_bucket_cyl_barrel_alpha;
-    const double c128 = c121 + c120 + c119;
-    const double c129 = c100*c108*v_bucket_cyl_barrel_beta;
-    const double c130 = c98*c109*v_bucket_cyl_barrel_gamma;
-    const double c131 = -c125 + c126 + c127;
-    const double c132 = -c130 + c129;
-    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0;
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1;
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2;
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3;
-}
-
 /* Driver inputs of case 'oscillation' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_euler_zxy_compute_inputs_oscillation(double t, double *out) {
     const double c0 = 310.0*t;
@@ -7886,10 +5180,6 @@ void excavator_euler_zxy_compute_input_ranges_oscillation(const double *span, do
     out[11] = r51.lo;
     out[23] = r51.hi;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 0 to 167. */
 void excavator_euler_zxy_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
@@ -8884,6 +6174,10 @@ void excavator_euler_zxy_compute_loads(const double *q, double t, const double *
     out[5] = -c6*c5 + 12800.0*c1*c11 + c10 + 8060.0*c4*c11 - c3*c6 - c9;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
+
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 84 values at INERTIA_COLS. Rows 0 to 17. */
 void excavator_euler_zxy_compute_inertia_part0(const double *q, const double *v, const double *a, const double *p, double *out) {
     const double upper_alpha = q[3];
@@ -9821,10 +7115,6 @@ void excavator_euler_zxy_compute_inertia_part2(const double *q, const double *v,
     out[65] = -c591*(c617 + c610*c618) + c571*c622*c614 - c609*bucket_cyl_rod_a21 - c596*(c613 - c610*c616) - c572*c621 + c577*c620;
 }
 
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 6
-
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 84 values at INERTIA_COLS. Rows 66 to 83. */
 void excavator_euler_zxy_compute_inertia_part3(const double *q, const double *v, const double *a, const double *p, double *out) {
     const double side_link_alpha = q[69];
@@ -10716,19 +8006,19 @@ static void call_input_ranges_level_cut(const double *const *x, double *const *y
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
 static void phi_jac_trench_wall(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_trench_wall(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_level_cut(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_trench_wall(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_level_cut(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
 static void nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_trench_wall(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_level_cut(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
@@ -10740,7 +8030,7 @@ static void gamma_trench_wall(const double *q, const double *v, const double *u,
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_level_cut(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
@@ -10781,19 +8071,19 @@ static void call_input_ranges_trench_wall(const double *const *x, double *const 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
 static void phi_jac_bucket_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_bucket_toggle(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_bucket_toggle(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_digging(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
 static void nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_bucket_toggle(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
@@ -10805,7 +8095,7 @@ static void gamma_bucket_toggle(const double *q, const double *v, const double *
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -10846,19 +8136,19 @@ static void call_input_ranges_bucket_toggle(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. */
 static void phi_jac_bucket_stroke(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_bucket_stroke(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_bucket_stroke(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_digging(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). */
 static void nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_bucket_stroke(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. */
@@ -10870,7 +8160,7 @@ static void gamma_bucket_stroke(const double *q, const double *v, const double *
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_bucket_stroke(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_stroke' at time t: u, then du/dt, then d2u/dt2. */
@@ -10911,19 +8201,19 @@ static void call_input_ranges_bucket_stroke(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
 static void phi_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_bucket_near_toggle(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_bucket_near_toggle(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_digging(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
 static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_bucket_near_toggle(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
@@ -10935,7 +8225,7 @@ static void gamma_bucket_near_toggle(const double *q, const double *v, const dou
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -10976,19 +8266,19 @@ static void call_input_ranges_bucket_near_toggle(const double *const *x, double 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. */
 static void phi_jac_digging_fast(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_digging_fast(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_digging_fast(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_digging(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'digging_fast' (zero in the joint rows). */
 static void nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_digging_fast(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. */
@@ -11000,7 +8290,7 @@ static void gamma_digging_fast(const double *q, const double *v, const double *u
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_digging_fast(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging_fast' at time t: u, then du/dt, then d2u/dt2. */
@@ -11041,19 +8331,19 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
 static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_digging_paced(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_digging_paced(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_digging(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
 static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
@@ -11065,7 +8355,7 @@ static void gamma_digging_paced(const double *q, const double *v, const double *
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
@@ -11106,19 +8396,19 @@ static void call_input_ranges_digging_paced(const double *const *x, double *cons
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
-    excavator_euler_zxy_compute_drivers_phi_oscillation(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
     excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
-    excavator_euler_zxy_compute_drivers_jac_oscillation(q, u, p, jac + 407);
+    excavator_euler_zxy_compute_drivers_jac_digging(q, u, p, jac + 407);
 }
 
 /* nu = -Phi_t of case 'oscillation' (zero in the joint rows). */
 static void nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_euler_zxy_compute_drivers_nu_oscillation(q, u, ud, p, nu + 80);
+    excavator_euler_zxy_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. */
@@ -11130,7 +8420,7 @@ static void gamma_oscillation(const double *q, const double *v, const double *u,
     excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
     excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
-    excavator_euler_zxy_compute_drivers_gamma_oscillation(q, v, u, ud, udd, p, gamma + 80);
+    excavator_euler_zxy_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'oscillation' at time t: u, then du/dt, then d2u/dt2. */

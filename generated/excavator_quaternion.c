@@ -18,8 +18,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 12 groups, each under its KINEGEN_PART value
- * (1 to 12; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 9 groups, each under its KINEGEN_PART value
+ * (1 to 9; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. The groups only the sensitivity kernels (phi_p, dvel,
  * dacc, frames_d, points_p) call come last, and -DKINEGEN_NO_SENSITIVITIES leaves them out with those kernels. */
 void excavator_quaternion_compute_joints_phi(const double *q, const double *p, double *out);
@@ -42,46 +42,18 @@ void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const do
 void excavator_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_level_cut(double t, double *out);
 void excavator_quaternion_compute_input_ranges_level_cut(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_trench_wall(double t, double *out);
 void excavator_quaternion_compute_input_ranges_trench_wall(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_bucket_toggle(double t, double *out);
 void excavator_quaternion_compute_input_ranges_bucket_toggle(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_bucket_stroke(double t, double *out);
 void excavator_quaternion_compute_input_ranges_bucket_stroke(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_bucket_near_toggle(double t, double *out);
 void excavator_quaternion_compute_input_ranges_bucket_near_toggle(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_digging_fast(double t, double *out);
 void excavator_quaternion_compute_input_ranges_digging_fast(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_digging_paced(double t, double *out);
 void excavator_quaternion_compute_input_ranges_digging_paced(const double *span, double *out);
-void excavator_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_inputs_oscillation(double t, double *out);
 void excavator_quaternion_compute_input_ranges_oscillation(const double *span, double *out);
 void excavator_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
@@ -127,30 +99,8 @@ void excavator_quaternion_compute_joints_dacc_part15(const double *q, const doub
 void excavator_quaternion_compute_joints_dacc_part16(const double *q, const double *v, const double *a, const double *p, double *out);
 void excavator_quaternion_compute_joints_dacc_part17(const double *q, const double *v, const double *a, const double *p, double *out);
 void excavator_quaternion_compute_drivers_dacc_digging(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_level_cut(const double *q, const double *u, const double *p, double *out);
 void excavator_quaternion_compute_drivers_dvel_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
 void excavator_quaternion_compute_drivers_dacc_level_cut(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_trench_wall(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_trench_wall(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_bucket_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_bucket_toggle(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_bucket_stroke(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_bucket_stroke(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_bucket_near_toggle(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_digging_fast(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_digging_fast(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_digging_paced(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_digging_paced(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
-void excavator_quaternion_compute_drivers_phi_p_oscillation(const double *q, const double *u, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dvel_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-void excavator_quaternion_compute_drivers_dacc_oscillation(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_points_p(const double *p, double *out);
 void excavator_quaternion_compute_frames_d_part0(const double *q, const double *v, const double *a, const double *w, const double *y, const double *z, double *out);
 void excavator_quaternion_compute_frames_d_part1(const double *q, const double *v, const double *a, const double *w, const double *y, const double *z, double *out);
@@ -473,7 +423,7 @@ void excavator_quaternion_compute_joints_phi(const double *q, const double *p, d
     out[79] = -c17*side_link_a22 + c16*side_link_a20 - side_link_z + bucket_cyl_rod_z;
 }
 
-/* Phi of the driver rows of case 'digging'. */
+/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -1471,7 +1421,7 @@ void excavator_quaternion_compute_joints_jac_part3(const double *q, const double
     out[402] = c283 - c284;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. */
+/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -1562,7 +1512,7 @@ void excavator_quaternion_compute_drivers_jac_digging(const double *q, const dou
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. */
+/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -2382,7 +2332,7 @@ void excavator_quaternion_compute_joints_gamma_part2(const double *q, const doub
     out[79] = c400*c406 - c401*c406 + c402*c405 - c402*c407;
 }
 
-/* gamma of the driver rows of case 'digging'. */
+/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -2726,7 +2676,7 @@ void excavator_quaternion_compute_input_ranges_digging(const double *span, doubl
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. */
+/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
 void excavator_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -2752,7 +2702,7 @@ void excavator_quaternion_compute_drivers_phi_level_cut(const double *q, const d
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. */
+/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
 void excavator_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -2790,7 +2740,7 @@ void excavator_quaternion_compute_drivers_jac_level_cut(const double *q, const d
     out[11] = c4*bucket_a12;
 }
 
-/* nu of the driver rows of case 'level_cut'. */
+/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
 void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -2814,7 +2764,7 @@ void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const do
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. */
+/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
 void excavator_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -2948,147 +2898,6 @@ void excavator_quaternion_compute_input_ranges_level_cut(const double *span, dou
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double bucket_x = q[91];
-    const double bucket_z = q[93];
-    const double bucket_qw = q[94];
-    const double bucket_qx = q[95];
-    const double bucket_qy = q[96];
-    const double bucket_qz = q[97];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
-    const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (32.0/25.0)*bucket_a00 - u1 + (403.0/500.0)*bucket_a02 + bucket_x;
-    out[2] = (403.0/500.0)*bucket_a22 + (32.0/25.0)*bucket_a20 - u2 + bucket_z;
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
-}
-
-/* Phi_q values of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double bucket_qw = q[94];
-    const double bucket_qx = q[95];
-    const double bucket_qy = q[96];
-    const double bucket_qz = q[97];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
-    const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = sin(u3);
-    const double c4 = cos(u3);
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = 1.0;
-    out[4] = (403.0/500.0)*bucket_a22 + (32.0/25.0)*bucket_a20;
-    out[5] = -32.0/25.0*bucket_a10 - 403.0/500.0*bucket_a12;
-    out[6] = 1.0;
-    out[7] = (403.0/500.0)*bucket_a12 + (32.0/25.0)*bucket_a10;
-    out[8] = -32.0/25.0*bucket_a00 - 403.0/500.0*bucket_a02;
-    out[9] = c3*bucket_a12;
-    out[10] = -c4*bucket_a22 - c3*bucket_a02;
-    out[11] = c4*bucket_a12;
-}
-
-/* nu of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double bucket_qw = q[94];
-    const double bucket_qx = q[95];
-    const double bucket_qy = q[96];
-    const double bucket_qz = q[97];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
-}
-
-/* gamma of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double bucket_qw = q[94];
-    const double bucket_qx = q[95];
-    const double bucket_qy = q[96];
-    const double bucket_qz = q[97];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_bucket_theta_x = v[81];
-    const double v_bucket_theta_y = v[82];
-    const double v_bucket_theta_z = v[83];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud3 = ud[3];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
-    const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = sin(u3);
-    const double c11 = cos(u3);
-    const double c12 = c11*bucket_a02;
-    const double c13 = c10*bucket_a22;
-    const double c14 = bucket_a12*v_bucket_theta_z;
-    const double c15 = bucket_a12*v_bucket_theta_x;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = (403.0/500.0)*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z)*v_bucket_theta_z + (32.0/25.0)*(-bucket_a20*v_bucket_theta_x + bucket_a00*v_bucket_theta_z)*v_bucket_theta_z - 32.0/25.0*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x)*v_bucket_theta_y - 403.0/500.0*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x)*v_bucket_theta_y + udd1;
-    out[2] = (403.0/500.0)*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y)*v_bucket_theta_y + (32.0/25.0)*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y)*v_bucket_theta_y - 32.0/25.0*(-bucket_a20*v_bucket_theta_x + bucket_a00*v_bucket_theta_z)*v_bucket_theta_x - 403.0/500.0*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z)*v_bucket_theta_x + udd2;
-    out[3] = -2.0*ud3*(-c10*c14 + c11*c15 + (-c12 + c13)*v_bucket_theta_y) - (c11*v_bucket_theta_z + c10*v_bucket_theta_x)*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + c15) + c10*v_bucket_theta_y*(-c14 + bucket_a22*v_bucket_theta_y) - (-c13 + c12)*(ud3*ud3) - (c11*bucket_a22 + c10*bucket_a02)*udd3;
-}
-
 /* Driver inputs of case 'trench_wall' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_quaternion_compute_inputs_trench_wall(double t, double *out) {
     const double c0 = pow(t, 3.0);
@@ -3170,294 +2979,6 @@ void excavator_quaternion_compute_input_ranges_trench_wall(const double *span, d
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
-    const double c12 = -c11 + c10;
-    const double c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
-    const double c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
-    const double c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
-    const double c17 = -c16 + c15;
-    const double c18 = -c13 + c14;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c21 = -c20 + c19;
-    const double c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c26 = -c25 + c24;
-    const double c27 = -c22 + c23;
-    const double c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
-    const double c30 = -c29 + c28;
-    const double c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
-    const double c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
-    const double c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
-    const double c35 = -c34 + c33;
-    const double c36 = -c31 + c32;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1;
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3;
-}
-
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_quaternion_compute_inputs_bucket_toggle(double t, double *out) {
     out[0] = 0.0;
@@ -3510,294 +3031,6 @@ void excavator_quaternion_compute_input_ranges_bucket_toggle(const double *span,
     out[23] = r1.hi;
 }
 
-/* Phi of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
-    const double c12 = -c11 + c10;
-    const double c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
-    const double c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
-    const double c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
-    const double c17 = -c16 + c15;
-    const double c18 = -c13 + c14;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c21 = -c20 + c19;
-    const double c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c26 = -c25 + c24;
-    const double c27 = -c22 + c23;
-    const double c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
-    const double c30 = -c29 + c28;
-    const double c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
-    const double c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
-    const double c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
-    const double c35 = -c34 + c33;
-    const double c36 = -c31 + c32;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1;
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3;
-}
-
 /* Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_quaternion_compute_inputs_bucket_stroke(double t, double *out) {
     out[0] = 0.0;
@@ -3848,298 +3081,6 @@ void excavator_quaternion_compute_input_ranges_bucket_stroke(const double *span,
     out[22] = r1.hi;
     out[11] = r1.lo;
     out[23] = r1.hi;
-}
-
-/* Phi of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
-
-/* gamma of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
-    const double c12 = -c11 + c10;
-    const double c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
-    const double c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
-    const double c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
-    const double c17 = -c16 + c15;
-    const double c18 = -c13 + c14;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c21 = -c20 + c19;
-    const double c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c26 = -c25 + c24;
-    const double c27 = -c22 + c23;
-    const double c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
-    const double c30 = -c29 + c28;
-    const double c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
-    const double c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
-    const double c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
-    const double c35 = -c34 + c33;
-    const double c36 = -c31 + c32;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1;
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3;
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -4202,294 +3143,6 @@ void excavator_quaternion_compute_input_ranges_bucket_near_toggle(const double *
     out[22] = r1.hi;
     out[11] = r15.lo;
     out[23] = r15.hi;
-}
-
-/* Phi of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_phi_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_jac_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
-    const double c12 = -c11 + c10;
-    const double c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
-    const double c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
-    const double c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
-    const double c17 = -c16 + c15;
-    const double c18 = -c13 + c14;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c21 = -c20 + c19;
-    const double c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c26 = -c25 + c24;
-    const double c27 = -c22 + c23;
-    const double c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
-    const double c30 = -c29 + c28;
-    const double c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
-    const double c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
-    const double c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
-    const double c35 = -c34 + c33;
-    const double c36 = -c31 + c32;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1;
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3;
 }
 
 /* Driver inputs of case 'digging_fast' at time t: rows u (4), then du/dt, then d2u/dt2. */
@@ -4711,294 +3364,6 @@ void excavator_quaternion_compute_input_ranges_digging_fast(const double *span, 
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
-    const double c12 = -c11 + c10;
-    const double c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
-    const double c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
-    const double c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
-    const double c17 = -c16 + c15;
-    const double c18 = -c13 + c14;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c21 = -c20 + c19;
-    const double c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c26 = -c25 + c24;
-    const double c27 = -c22 + c23;
-    const double c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
-    const double c30 = -c29 + c28;
-    const double c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
-    const double c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
-    const double c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
-    const double c35 = -c34 + c33;
-    const double c36 = -c31 + c32;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1;
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3;
-}
-
 /* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_quaternion_compute_inputs_digging_paced(double t, double *out) {
     const double c0 = -4.0/7.0*t;
@@ -5218,294 +3583,6 @@ void excavator_quaternion_compute_input_ranges_digging_paced(const double *span,
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    const double u1 = u[1];
-    const double u2 = u[2];
-    const double u3 = u[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*sin(c0)*upper_qw - 2.0*cos(c0)*upper_qz;
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1;
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2;
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3;
-}
-
-/* Phi_q values of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double u0 = u[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = sin(c0);
-    const double c2 = cos(c0);
-    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
-    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
-    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
-    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    out[0] = -c2*upper_qy - c1*upper_qx;
-    out[1] = -c1*upper_qy + c2*upper_qx;
-    out[2] = -c1*upper_qz - c2*upper_qw;
-    out[3] = -boom_cyl_l_barrel_a00;
-    out[4] = -boom_cyl_l_barrel_a10;
-    out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10;
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20;
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00;
-    out[9] = boom_cyl_l_barrel_a00;
-    out[10] = boom_cyl_l_barrel_a10;
-    out[11] = boom_cyl_l_barrel_a20;
-    out[12] = -arm_cyl_barrel_a00;
-    out[13] = -arm_cyl_barrel_a10;
-    out[14] = -arm_cyl_barrel_a20;
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10;
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20;
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00;
-    out[18] = arm_cyl_barrel_a00;
-    out[19] = arm_cyl_barrel_a10;
-    out[20] = arm_cyl_barrel_a20;
-    out[21] = -bucket_cyl_barrel_a00;
-    out[22] = -bucket_cyl_barrel_a10;
-    out[23] = -bucket_cyl_barrel_a20;
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10;
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20;
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00;
-    out[27] = bucket_cyl_barrel_a00;
-    out[28] = bucket_cyl_barrel_a10;
-    out[29] = bucket_cyl_barrel_a20;
-}
-
-/* nu of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qz = q[6];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double ud1 = ud[1];
-    const double ud2 = ud[2];
-    const double ud3 = ud[3];
-    (void)p;
-    const double c0 = (1.0/2.0)*u0;
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0;
-    out[1] = ud1;
-    out[2] = ud2;
-    out[3] = ud3;
-}
-
-/* gamma of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_gamma_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    const double udd1 = udd[1];
-    const double udd2 = udd[2];
-    const double udd3 = udd[3];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*upper_qz;
-    const double c4 = c1*c3;
-    const double c5 = (1.0/2.0)*c2;
-    const double c6 = c5*upper_qw;
-    const double c7 = (1.0/2.0)*upper_qw;
-    const double c8 = (1.0/2.0)*upper_qx;
-    const double c9 = (1.0/2.0)*upper_qy;
-    const double c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
-    const double c12 = -c11 + c10;
-    const double c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
-    const double c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
-    const double c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
-    const double c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
-    const double c17 = -c16 + c15;
-    const double c18 = -c13 + c14;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c21 = -c20 + c19;
-    const double c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c26 = -c25 + c24;
-    const double c27 = -c22 + c23;
-    const double c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
-    const double c30 = -c29 + c28;
-    const double c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
-    const double c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
-    const double c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
-    const double c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
-    const double c35 = -c34 + c33;
-    const double c36 = -c31 + c32;
-    out[0] = -2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0;
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1;
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2;
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3;
-}
-
 /* Driver inputs of case 'oscillation' at time t: rows u (4), then du/dt, then d2u/dt2. */
 void excavator_quaternion_compute_inputs_oscillation(double t, double *out) {
     const double c0 = 310.0*t;
@@ -5612,7 +3689,7 @@ void excavator_quaternion_compute_input_ranges_oscillation(const double *span, d
 
 #endif
 
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 0 to 239. */
 void excavator_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
@@ -7643,7 +5720,7 @@ void excavator_quaternion_compute_pump_limits(const double *q, const double *v, 
 
 #endif
 
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS). */
 void excavator_quaternion_compute_points(const double *p, double *out) {
@@ -7762,7 +5839,7 @@ void excavator_quaternion_compute_actuator_ranges(const double *p, double *out) 
 
 #endif
 
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 6) && !defined(KINEGEN_NO_SENSITIVITIES)
+#if (!defined(KINEGEN_PART) || KINEGEN_PART == 5) && !defined(KINEGEN_NO_SENSITIVITIES)
 
 /* Phi_p values of the joint rows (33 entries). */
 void excavator_quaternion_compute_joints_phi_p(const double *q, const double *p, double *out) {
@@ -7852,7 +5929,7 @@ void excavator_quaternion_compute_joints_phi_p(const double *q, const double *p,
     out[32] = -0.822595724821202*side_link_a22 + 0.5686266556413632*side_link_a20;
 }
 
-/* Phi_p values of the driver rows of case 'digging'. */
+/* Phi_p values of the driver rows of case 'digging'. Also drivers_phi_p_level_cut's, word for word. Also drivers_phi_p_trench_wall's, word for word. Also drivers_phi_p_bucket_toggle's, word for word. Also drivers_phi_p_bucket_stroke's, word for word. Also drivers_phi_p_bucket_near_toggle's, word for word. Also drivers_phi_p_digging_fast's, word for word. Also drivers_phi_p_digging_paced's, word for word. Also drivers_phi_p_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_phi_p_digging(const double *q, const double *u, const double *p, double *out) {
     (void)q;
     (void)u;
@@ -9574,7 +7651,7 @@ void excavator_quaternion_compute_joints_dvel_part6(const double *q, const doubl
     out[395] = (-c836 + c834)*v_side_link_theta_x + (-c844 + c846)*v_side_link_theta_y;
 }
 
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'. */
+/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'. Also drivers_dvel_bucket_toggle's, word for word. Also drivers_dvel_bucket_stroke's, word for word. Also drivers_dvel_bucket_near_toggle's, word for word. Also drivers_dvel_digging_fast's, word for word. Also drivers_dvel_digging_paced's, word for word. Also drivers_dvel_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_dvel_digging(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -9720,7 +7797,7 @@ void excavator_quaternion_compute_drivers_dvel_digging(const double *q, const do
 
 #endif
 
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 7) && !defined(KINEGEN_NO_SENSITIVITIES)
+#if (!defined(KINEGEN_PART) || KINEGEN_PART == 6) && !defined(KINEGEN_NO_SENSITIVITIES)
 
 /* [M_a | N_a | E_a] values (acceleration sensitivity) of the joint rows (759 entries). Rows 0 to 53. */
 void excavator_quaternion_compute_joints_dacc_part0(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -11536,7 +9613,7 @@ void excavator_quaternion_compute_joints_dacc_part6(const double *q, const doubl
 
 #endif
 
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 8) && !defined(KINEGEN_NO_SENSITIVITIES)
+#if (!defined(KINEGEN_PART) || KINEGEN_PART == 7) && !defined(KINEGEN_NO_SENSITIVITIES)
 
 /* [M_a | N_a | E_a] values (acceleration sensitivity) of the joint rows (759 entries). Rows 306 to 347. */
 void excavator_quaternion_compute_joints_dacc_part7(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -13551,7 +11628,7 @@ void excavator_quaternion_compute_joints_dacc_part14(const double *q, const doub
 
 #endif
 
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 9) && !defined(KINEGEN_NO_SENSITIVITIES)
+#if (!defined(KINEGEN_PART) || KINEGEN_PART == 8) && !defined(KINEGEN_NO_SENSITIVITIES)
 
 /* [M_a | N_a | E_a] values (acceleration sensitivity) of the joint rows (759 entries). Rows 636 to 665. */
 void excavator_quaternion_compute_joints_dacc_part15(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -14275,7 +12352,7 @@ void excavator_quaternion_compute_joints_dacc_part17(const double *q, const doub
     out[758] = (-c3026 + c3024)*dv_side_link_theta_x + (-c3036 + c3038)*dv_side_link_theta_y - c3043*v_side_link_theta_x - c3066*v_side_link_theta_y + c3045*v_side_link_theta_x + c3065*v_side_link_theta_y;
 }
 
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'. */
+/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'. Also drivers_dacc_bucket_toggle's, word for word. Also drivers_dacc_bucket_stroke's, word for word. Also drivers_dacc_bucket_near_toggle's, word for word. Also drivers_dacc_digging_fast's, word for word. Also drivers_dacc_digging_paced's, word for word. Also drivers_dacc_oscillation's, word for word. */
 void excavator_quaternion_compute_drivers_dacc_digging(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -14580,15 +12657,7 @@ void excavator_quaternion_compute_drivers_dacc_digging(const double *q, const do
     out[59] = 2.0*c107 - 2.0*c108;
 }
 
-/* Phi_p values of the driver rows of case 'level_cut'. */
-void excavator_quaternion_compute_drivers_phi_p_level_cut(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'. */
+/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'. Also drivers_dvel_trench_wall's, word for word. */
 void excavator_quaternion_compute_drivers_dvel_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -14648,7 +12717,7 @@ void excavator_quaternion_compute_drivers_dvel_level_cut(const double *q, const 
     out[11] = c16*bucket_a02 - c18*bucket_a12;
 }
 
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'. */
+/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'. Also drivers_dacc_trench_wall's, word for word. */
 void excavator_quaternion_compute_drivers_dacc_level_cut(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -14787,2962 +12856,9 @@ void excavator_quaternion_compute_drivers_dacc_level_cut(const double *q, const 
     out[23] = -c61*c74 + c63*c73 + c61*c75 + c67*bucket_a02;
 }
 
-/* Phi_p values of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_phi_p_trench_wall(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_dvel_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double bucket_qw = q[94];
-    const double bucket_qx = q[95];
-    const double bucket_qy = q[96];
-    const double bucket_qz = q[97];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_bucket_theta_x = v[81];
-    const double v_bucket_theta_y = v[82];
-    const double v_bucket_theta_z = v[83];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud3 = ud[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
-    const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = (32.0/25.0)*v_bucket_theta_z;
-    const double c8 = (403.0/500.0)*v_bucket_theta_z;
-    const double c9 = (32.0/25.0)*v_bucket_theta_y;
-    const double c10 = (403.0/500.0)*v_bucket_theta_y;
-    const double c11 = (32.0/25.0)*v_bucket_theta_x;
-    const double c12 = (403.0/500.0)*bucket_a22;
-    const double c13 = (32.0/25.0)*v_bucket_theta_y;
-    const double c14 = cos(u3);
-    const double c15 = sin(u3);
-    const double c16 = c15*v_bucket_theta_x + c14*v_bucket_theta_z;
-    const double c17 = -c14*v_bucket_theta_y + c14*ud3;
-    const double c18 = -c15*v_bucket_theta_y + c15*ud3;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c10*bucket_a12 + c9*bucket_a10 + c8*bucket_a22 + c7*bucket_a20;
-    out[4] = -c10*bucket_a02 - c9*bucket_a00;
-    out[5] = -c8*bucket_a02 - c7*bucket_a00;
-    out[6] = -c12*v_bucket_theta_x - c11*bucket_a20;
-    out[7] = -c12*v_bucket_theta_y - c13*bucket_a20;
-    out[8] = (403.0/500.0)*bucket_a02*v_bucket_theta_x + c11*bucket_a00 + (403.0/500.0)*bucket_a12*v_bucket_theta_y + c13*bucket_a10;
-    out[9] = c17*bucket_a12 - c16*bucket_a22;
-    out[10] = -c17*bucket_a02 + c18*bucket_a22;
-    out[11] = c16*bucket_a02 - c18*bucket_a12;
-}
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'trench_wall'. */
-void excavator_quaternion_compute_drivers_dacc_trench_wall(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double bucket_qw = q[94];
-    const double bucket_qx = q[95];
-    const double bucket_qy = q[96];
-    const double bucket_qz = q[97];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_bucket_theta_x = v[81];
-    const double v_bucket_theta_y = v[82];
-    const double v_bucket_theta_z = v[83];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_bucket_theta_x = a[81];
-    const double dv_bucket_theta_y = a[82];
-    const double dv_bucket_theta_z = a[83];
-    const double u0 = u[0];
-    const double u3 = u[3];
-    const double ud0 = ud[0];
-    const double ud3 = ud[3];
-    const double udd0 = udd[0];
-    const double udd3 = udd[3];
-    (void)p;
-    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
-    const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = (32.0/25.0)*v_bucket_theta_x;
-    const double c36 = -32.0/25.0*dv_bucket_theta_z + c35*v_bucket_theta_y;
-    const double c37 = (32.0/25.0)*dv_bucket_theta_y + c35*v_bucket_theta_z;
-    const double c38 = (403.0/500.0)*v_bucket_theta_y;
-    const double c39 = -403.0/500.0*dv_bucket_theta_z + c38*v_bucket_theta_x;
-    const double c40 = (403.0/500.0)*v_bucket_theta_z;
-    const double c41 = (403.0/500.0)*dv_bucket_theta_y + c40*v_bucket_theta_x;
-    const double c42 = (v_bucket_theta_y*v_bucket_theta_y);
-    const double c43 = (v_bucket_theta_z*v_bucket_theta_z);
-    const double c44 = -32.0/25.0*c43 - 32.0/25.0*c42;
-    const double c45 = -403.0/500.0*c43 - 403.0/500.0*c42;
-    const double c46 = (403.0/250.0)*bucket_a02;
-    const double c47 = (403.0/500.0)*v_bucket_theta_x;
-    const double c48 = (64.0/25.0)*bucket_a00;
-    const double c49 = (32.0/25.0)*v_bucket_theta_z;
-    const double c50 = (32.0/25.0)*dv_bucket_theta_x + c49*v_bucket_theta_y;
-    const double c51 = (403.0/500.0)*v_bucket_theta_z;
-    const double c52 = (403.0/500.0)*dv_bucket_theta_x + c51*v_bucket_theta_y;
-    const double c53 = (v_bucket_theta_x*v_bucket_theta_x);
-    const double c54 = (v_bucket_theta_y*v_bucket_theta_y);
-    const double c55 = -403.0/500.0*c54 - 403.0/500.0*c53;
-    const double c56 = -32.0/25.0*c54 - 32.0/25.0*c53;
-    const double c57 = -32.0/25.0*dv_bucket_theta_y + c49*v_bucket_theta_x;
-    const double c58 = -403.0/500.0*dv_bucket_theta_y + c51*v_bucket_theta_x;
-    const double c59 = (403.0/250.0)*bucket_a22;
-    const double c60 = (64.0/25.0)*bucket_a20;
-    const double c61 = sin(u3);
-    const double c62 = c61*v_bucket_theta_z;
-    const double c63 = cos(u3);
-    const double c64 = c63*v_bucket_theta_x;
-    const double c65 = 2.0*ud3;
-    const double c66 = c63*dv_bucket_theta_z - c64*v_bucket_theta_y + c61*dv_bucket_theta_x + (c64 - c62)*c65 + c62*v_bucket_theta_y;
-    const double c67 = c63*v_bucket_theta_z + c61*v_bucket_theta_x;
-    const double c68 = (v_bucket_theta_y*v_bucket_theta_y);
-    const double c69 = (ud3*ud3);
-    const double c70 = c65*v_bucket_theta_y;
-    const double c71 = -c63*dv_bucket_theta_y + c61*c70 - c61*c68 - c61*c69 - c67*v_bucket_theta_x + c63*udd3;
-    const double c72 = -c61*dv_bucket_theta_y + c63*c68 - c63*c70 + c61*udd3 + c63*c69 + c67*v_bucket_theta_z;
-    const double c73 = -bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z;
-    const double c74 = c65*bucket_a12;
-    const double c75 = bucket_a12*v_bucket_theta_y;
-    const double c76 = bucket_a22*v_bucket_theta_y;
-    const double c77 = bucket_a02*v_bucket_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = c41*bucket_a12 - c39*bucket_a22 + c37*bucket_a10 - c36*bucket_a20;
-    out[7] = -c41*bucket_a02 - c37*bucket_a00 + c45*bucket_a22 + c44*bucket_a20;
-    out[8] = c39*bucket_a02 + c36*bucket_a00 - c45*bucket_a12 - c44*bucket_a10;
-    out[9] = (32.0/25.0)*bucket_a20*v_bucket_theta_z + c40*bucket_a22 + (32.0/25.0)*bucket_a10*v_bucket_theta_y + c38*bucket_a12;
-    out[10] = c35*bucket_a10 - c48*v_bucket_theta_y + c47*bucket_a12 - c46*v_bucket_theta_y;
-    out[11] = c35*bucket_a20 - c48*v_bucket_theta_z + c47*bucket_a22 - c46*v_bucket_theta_z;
-    out[12] = c56*bucket_a10 + c55*bucket_a12 - c52*bucket_a22 - c50*bucket_a20;
-    out[13] = -c55*bucket_a02 - c56*bucket_a00 + c58*bucket_a22 + c57*bucket_a20;
-    out[14] = c52*bucket_a02 + c50*bucket_a00 - c58*bucket_a12 - c57*bucket_a10;
-    out[15] = c49*bucket_a00 - c60*v_bucket_theta_x + c51*bucket_a02 - c59*v_bucket_theta_x;
-    out[16] = c51*bucket_a12 - c59*v_bucket_theta_y + c49*bucket_a10 - c60*v_bucket_theta_y;
-    out[17] = (403.0/500.0)*bucket_a12*v_bucket_theta_y + (32.0/25.0)*bucket_a10*v_bucket_theta_y + (32.0/25.0)*bucket_a00*v_bucket_theta_x + (403.0/500.0)*bucket_a02*v_bucket_theta_x;
-    out[18] = c71*bucket_a12 - c66*bucket_a22;
-    out[19] = -c71*bucket_a02 + c72*bucket_a22;
-    out[20] = c66*bucket_a02 - c72*bucket_a12;
-    out[21] = -c63*c75 + c63*c74 - c67*bucket_a22 + c61*c73;
-    out[22] = -c63*(-c77 + bucket_a12*v_bucket_theta_x) + c63*c77 + (-c63*bucket_a02 + c61*bucket_a22)*c65 - c61*(-bucket_a12*v_bucket_theta_z + c76) - c61*c76;
-    out[23] = -c61*c74 + c63*c73 + c61*c75 + c67*bucket_a02;
-}
-
-/* Phi_p values of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_phi_p_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_dvel_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y;
-    const double c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z;
-    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x;
-    const double c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x;
-    const double c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y;
-    const double c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z;
-    const double c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c8 - c7;
-    out[4] = -c10 + c9;
-    out[5] = c12 - c11;
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20;
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20;
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
-    out[9] = -c8 + c7;
-    out[10] = c10 - c9;
-    out[11] = -c12 + c11;
-    out[12] = -c17 + c16;
-    out[13] = c19 - c18;
-    out[14] = c21 - c20;
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20;
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20;
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10;
-    out[18] = c17 - c16;
-    out[19] = -c19 + c18;
-    out[20] = -c21 + c20;
-    out[21] = -c26 + c25;
-    out[22] = c28 - c27;
-    out[23] = c30 - c29;
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20;
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20;
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10;
-    out[27] = c26 - c25;
-    out[28] = -c28 + c27;
-    out[29] = -c30 + c29;
-}
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_toggle'. */
-void excavator_quaternion_compute_drivers_dacc_bucket_toggle(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_boom_cyl_l_barrel_x = a[12];
-    const double dv_boom_cyl_l_barrel_y = a[13];
-    const double dv_boom_cyl_l_barrel_z = a[14];
-    const double dv_boom_cyl_l_barrel_theta_x = a[15];
-    const double dv_boom_cyl_l_barrel_theta_y = a[16];
-    const double dv_boom_cyl_l_barrel_theta_z = a[17];
-    const double dv_boom_cyl_l_rod_x = a[18];
-    const double dv_boom_cyl_l_rod_y = a[19];
-    const double dv_boom_cyl_l_rod_z = a[20];
-    const double dv_arm_cyl_barrel_x = a[42];
-    const double dv_arm_cyl_barrel_y = a[43];
-    const double dv_arm_cyl_barrel_z = a[44];
-    const double dv_arm_cyl_barrel_theta_x = a[45];
-    const double dv_arm_cyl_barrel_theta_y = a[46];
-    const double dv_arm_cyl_barrel_theta_z = a[47];
-    const double dv_arm_cyl_rod_x = a[48];
-    const double dv_arm_cyl_rod_y = a[49];
-    const double dv_arm_cyl_rod_z = a[50];
-    const double dv_bucket_cyl_barrel_x = a[54];
-    const double dv_bucket_cyl_barrel_y = a[55];
-    const double dv_bucket_cyl_barrel_z = a[56];
-    const double dv_bucket_cyl_barrel_theta_x = a[57];
-    const double dv_bucket_cyl_barrel_theta_y = a[58];
-    const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double dv_bucket_cyl_rod_x = a[60];
-    const double dv_bucket_cyl_rod_y = a[61];
-    const double dv_bucket_cyl_rod_z = a[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z;
-    const double c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c38 = -c37 + c36;
-    const double c39 = c38*v_boom_cyl_l_barrel_theta_z;
-    const double c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y;
-    const double c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c43 = -c42 + c41;
-    const double c44 = c43*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x;
-    const double c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z;
-    const double c47 = c43*v_boom_cyl_l_barrel_theta_x;
-    const double c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c50 = -c49 + c48;
-    const double c51 = c50*v_boom_cyl_l_barrel_theta_z;
-    const double c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y;
-    const double c53 = c38*v_boom_cyl_l_barrel_theta_x;
-    const double c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x;
-    const double c55 = c50*v_boom_cyl_l_barrel_theta_y;
-    const double c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z;
-    const double c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
-    const double c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z;
-    const double c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x;
-    const double c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x;
-    const double c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x;
-    const double c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y;
-    const double c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z;
-    const double c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y;
-    const double c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c72 = -c71 + c70;
-    const double c73 = c72*v_arm_cyl_barrel_theta_y;
-    const double c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c76 = -c75 + c74;
-    const double c77 = c76*v_arm_cyl_barrel_theta_z;
-    const double c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x;
-    const double c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z;
-    const double c80 = c72*v_arm_cyl_barrel_theta_x;
-    const double c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c83 = -c82 + c81;
-    const double c84 = c83*v_arm_cyl_barrel_theta_z;
-    const double c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y;
-    const double c86 = c76*v_arm_cyl_barrel_theta_x;
-    const double c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x;
-    const double c88 = c83*v_arm_cyl_barrel_theta_y;
-    const double c89 = -arm_cyl_rod_z + arm_cyl_barrel_z;
-    const double c90 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c92 = arm_cyl_barrel_y - arm_cyl_rod_y;
-    const double c93 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c95 = -arm_cyl_rod_x + arm_cyl_barrel_x;
-    const double c96 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z;
-    const double c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y;
-    const double c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z;
-    const double c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y;
-    const double c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z;
-    const double c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c105 = -c104 + c103;
-    const double c106 = c105*v_bucket_cyl_barrel_theta_z;
-    const double c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c109 = -c108 + c107;
-    const double c110 = c109*v_bucket_cyl_barrel_theta_y;
-    const double c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x;
-    const double c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z;
-    const double c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c115 = -c114 + c113;
-    const double c116 = c115*v_bucket_cyl_barrel_theta_z;
-    const double c117 = c109*v_bucket_cyl_barrel_theta_x;
-    const double c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y;
-    const double c119 = c115*v_bucket_cyl_barrel_theta_y;
-    const double c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x;
-    const double c121 = c105*v_bucket_cyl_barrel_theta_x;
-    const double c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
-    const double c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x;
-    const double c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z;
-    const double c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y;
-    const double c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z;
-    const double c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = -c44 - c40 + c39 + c35;
-    out[7] = -c51 + c47 - c46 + c45;
-    out[8] = c55 - c54 - c53 + c52;
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20;
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20;
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10;
-    out[12] = c44 + c40 - c39 - c35;
-    out[13] = c51 - c47 + c46 - c45;
-    out[14] = -c55 + c54 + c53 - c52;
-    out[15] = c49 - c48 - c50;
-    out[16] = -c38 + c37 - c36;
-    out[17] = -c43 + c42 - c41;
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20;
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x;
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00;
-    out[21] = 2.0*c48 - 2.0*c49;
-    out[22] = 2.0*c36 - 2.0*c37;
-    out[23] = 2.0*c41 - 2.0*c42;
-    out[24] = c77 - c73 - c69 + c68;
-    out[25] = -c84 + c80 - c79 + c78;
-    out[26] = c88 - c87 - c86 + c85;
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20;
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20;
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10;
-    out[30] = -c77 + c73 + c69 - c68;
-    out[31] = c84 - c80 + c79 - c78;
-    out[32] = -c88 + c87 + c86 - c85;
-    out[33] = -c83 + c82 - c81;
-    out[34] = -c76 + c75 - c74;
-    out[35] = -c72 + c71 - c70;
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x;
-    out[39] = 2.0*c81 - 2.0*c82;
-    out[40] = 2.0*c74 - 2.0*c75;
-    out[41] = 2.0*c70 - 2.0*c71;
-    out[42] = -c110 + c106 + c102 - c101;
-    out[43] = c117 - c116 - c112 + c111;
-    out[44] = -c121 - c120 + c119 + c118;
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20;
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20;
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10;
-    out[48] = c110 - c106 - c102 + c101;
-    out[49] = -c117 + c116 + c112 - c111;
-    out[50] = c121 + c120 - c119 - c118;
-    out[51] = -c115 + c114 - c113;
-    out[52] = -c105 + c104 - c103;
-    out[53] = c108 - c107 - c109;
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10;
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20;
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10;
-    out[57] = 2.0*c113 - 2.0*c114;
-    out[58] = 2.0*c103 - 2.0*c104;
-    out[59] = 2.0*c107 - 2.0*c108;
-}
-
-/* Phi_p values of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_phi_p_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_dvel_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y;
-    const double c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z;
-    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x;
-    const double c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x;
-    const double c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y;
-    const double c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z;
-    const double c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c8 - c7;
-    out[4] = -c10 + c9;
-    out[5] = c12 - c11;
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20;
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20;
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
-    out[9] = -c8 + c7;
-    out[10] = c10 - c9;
-    out[11] = -c12 + c11;
-    out[12] = -c17 + c16;
-    out[13] = c19 - c18;
-    out[14] = c21 - c20;
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20;
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20;
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10;
-    out[18] = c17 - c16;
-    out[19] = -c19 + c18;
-    out[20] = -c21 + c20;
-    out[21] = -c26 + c25;
-    out[22] = c28 - c27;
-    out[23] = c30 - c29;
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20;
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20;
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10;
-    out[27] = c26 - c25;
-    out[28] = -c28 + c27;
-    out[29] = -c30 + c29;
-}
-
 #endif
 
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 10) && !defined(KINEGEN_NO_SENSITIVITIES)
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_stroke'. */
-void excavator_quaternion_compute_drivers_dacc_bucket_stroke(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_boom_cyl_l_barrel_x = a[12];
-    const double dv_boom_cyl_l_barrel_y = a[13];
-    const double dv_boom_cyl_l_barrel_z = a[14];
-    const double dv_boom_cyl_l_barrel_theta_x = a[15];
-    const double dv_boom_cyl_l_barrel_theta_y = a[16];
-    const double dv_boom_cyl_l_barrel_theta_z = a[17];
-    const double dv_boom_cyl_l_rod_x = a[18];
-    const double dv_boom_cyl_l_rod_y = a[19];
-    const double dv_boom_cyl_l_rod_z = a[20];
-    const double dv_arm_cyl_barrel_x = a[42];
-    const double dv_arm_cyl_barrel_y = a[43];
-    const double dv_arm_cyl_barrel_z = a[44];
-    const double dv_arm_cyl_barrel_theta_x = a[45];
-    const double dv_arm_cyl_barrel_theta_y = a[46];
-    const double dv_arm_cyl_barrel_theta_z = a[47];
-    const double dv_arm_cyl_rod_x = a[48];
-    const double dv_arm_cyl_rod_y = a[49];
-    const double dv_arm_cyl_rod_z = a[50];
-    const double dv_bucket_cyl_barrel_x = a[54];
-    const double dv_bucket_cyl_barrel_y = a[55];
-    const double dv_bucket_cyl_barrel_z = a[56];
-    const double dv_bucket_cyl_barrel_theta_x = a[57];
-    const double dv_bucket_cyl_barrel_theta_y = a[58];
-    const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double dv_bucket_cyl_rod_x = a[60];
-    const double dv_bucket_cyl_rod_y = a[61];
-    const double dv_bucket_cyl_rod_z = a[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z;
-    const double c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c38 = -c37 + c36;
-    const double c39 = c38*v_boom_cyl_l_barrel_theta_z;
-    const double c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y;
-    const double c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c43 = -c42 + c41;
-    const double c44 = c43*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x;
-    const double c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z;
-    const double c47 = c43*v_boom_cyl_l_barrel_theta_x;
-    const double c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c50 = -c49 + c48;
-    const double c51 = c50*v_boom_cyl_l_barrel_theta_z;
-    const double c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y;
-    const double c53 = c38*v_boom_cyl_l_barrel_theta_x;
-    const double c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x;
-    const double c55 = c50*v_boom_cyl_l_barrel_theta_y;
-    const double c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z;
-    const double c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
-    const double c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z;
-    const double c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x;
-    const double c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x;
-    const double c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x;
-    const double c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y;
-    const double c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z;
-    const double c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y;
-    const double c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c72 = -c71 + c70;
-    const double c73 = c72*v_arm_cyl_barrel_theta_y;
-    const double c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c76 = -c75 + c74;
-    const double c77 = c76*v_arm_cyl_barrel_theta_z;
-    const double c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x;
-    const double c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z;
-    const double c80 = c72*v_arm_cyl_barrel_theta_x;
-    const double c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c83 = -c82 + c81;
-    const double c84 = c83*v_arm_cyl_barrel_theta_z;
-    const double c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y;
-    const double c86 = c76*v_arm_cyl_barrel_theta_x;
-    const double c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x;
-    const double c88 = c83*v_arm_cyl_barrel_theta_y;
-    const double c89 = -arm_cyl_rod_z + arm_cyl_barrel_z;
-    const double c90 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c92 = arm_cyl_barrel_y - arm_cyl_rod_y;
-    const double c93 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c95 = -arm_cyl_rod_x + arm_cyl_barrel_x;
-    const double c96 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z;
-    const double c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y;
-    const double c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z;
-    const double c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y;
-    const double c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z;
-    const double c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c105 = -c104 + c103;
-    const double c106 = c105*v_bucket_cyl_barrel_theta_z;
-    const double c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c109 = -c108 + c107;
-    const double c110 = c109*v_bucket_cyl_barrel_theta_y;
-    const double c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x;
-    const double c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z;
-    const double c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c115 = -c114 + c113;
-    const double c116 = c115*v_bucket_cyl_barrel_theta_z;
-    const double c117 = c109*v_bucket_cyl_barrel_theta_x;
-    const double c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y;
-    const double c119 = c115*v_bucket_cyl_barrel_theta_y;
-    const double c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x;
-    const double c121 = c105*v_bucket_cyl_barrel_theta_x;
-    const double c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
-    const double c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x;
-    const double c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z;
-    const double c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y;
-    const double c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z;
-    const double c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = -c44 - c40 + c39 + c35;
-    out[7] = -c51 + c47 - c46 + c45;
-    out[8] = c55 - c54 - c53 + c52;
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20;
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20;
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10;
-    out[12] = c44 + c40 - c39 - c35;
-    out[13] = c51 - c47 + c46 - c45;
-    out[14] = -c55 + c54 + c53 - c52;
-    out[15] = c49 - c48 - c50;
-    out[16] = -c38 + c37 - c36;
-    out[17] = -c43 + c42 - c41;
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20;
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x;
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00;
-    out[21] = 2.0*c48 - 2.0*c49;
-    out[22] = 2.0*c36 - 2.0*c37;
-    out[23] = 2.0*c41 - 2.0*c42;
-    out[24] = c77 - c73 - c69 + c68;
-    out[25] = -c84 + c80 - c79 + c78;
-    out[26] = c88 - c87 - c86 + c85;
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20;
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20;
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10;
-    out[30] = -c77 + c73 + c69 - c68;
-    out[31] = c84 - c80 + c79 - c78;
-    out[32] = -c88 + c87 + c86 - c85;
-    out[33] = -c83 + c82 - c81;
-    out[34] = -c76 + c75 - c74;
-    out[35] = -c72 + c71 - c70;
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x;
-    out[39] = 2.0*c81 - 2.0*c82;
-    out[40] = 2.0*c74 - 2.0*c75;
-    out[41] = 2.0*c70 - 2.0*c71;
-    out[42] = -c110 + c106 + c102 - c101;
-    out[43] = c117 - c116 - c112 + c111;
-    out[44] = -c121 - c120 + c119 + c118;
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20;
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20;
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10;
-    out[48] = c110 - c106 - c102 + c101;
-    out[49] = -c117 + c116 + c112 - c111;
-    out[50] = c121 + c120 - c119 - c118;
-    out[51] = -c115 + c114 - c113;
-    out[52] = -c105 + c104 - c103;
-    out[53] = c108 - c107 - c109;
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10;
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20;
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10;
-    out[57] = 2.0*c113 - 2.0*c114;
-    out[58] = 2.0*c103 - 2.0*c104;
-    out[59] = 2.0*c107 - 2.0*c108;
-}
-
-/* Phi_p values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_phi_p_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_dvel_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y;
-    const double c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z;
-    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x;
-    const double c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x;
-    const double c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y;
-    const double c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z;
-    const double c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c8 - c7;
-    out[4] = -c10 + c9;
-    out[5] = c12 - c11;
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20;
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20;
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
-    out[9] = -c8 + c7;
-    out[10] = c10 - c9;
-    out[11] = -c12 + c11;
-    out[12] = -c17 + c16;
-    out[13] = c19 - c18;
-    out[14] = c21 - c20;
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20;
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20;
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10;
-    out[18] = c17 - c16;
-    out[19] = -c19 + c18;
-    out[20] = -c21 + c20;
-    out[21] = -c26 + c25;
-    out[22] = c28 - c27;
-    out[23] = c30 - c29;
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20;
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20;
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10;
-    out[27] = c26 - c25;
-    out[28] = -c28 + c27;
-    out[29] = -c30 + c29;
-}
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_near_toggle'. */
-void excavator_quaternion_compute_drivers_dacc_bucket_near_toggle(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_boom_cyl_l_barrel_x = a[12];
-    const double dv_boom_cyl_l_barrel_y = a[13];
-    const double dv_boom_cyl_l_barrel_z = a[14];
-    const double dv_boom_cyl_l_barrel_theta_x = a[15];
-    const double dv_boom_cyl_l_barrel_theta_y = a[16];
-    const double dv_boom_cyl_l_barrel_theta_z = a[17];
-    const double dv_boom_cyl_l_rod_x = a[18];
-    const double dv_boom_cyl_l_rod_y = a[19];
-    const double dv_boom_cyl_l_rod_z = a[20];
-    const double dv_arm_cyl_barrel_x = a[42];
-    const double dv_arm_cyl_barrel_y = a[43];
-    const double dv_arm_cyl_barrel_z = a[44];
-    const double dv_arm_cyl_barrel_theta_x = a[45];
-    const double dv_arm_cyl_barrel_theta_y = a[46];
-    const double dv_arm_cyl_barrel_theta_z = a[47];
-    const double dv_arm_cyl_rod_x = a[48];
-    const double dv_arm_cyl_rod_y = a[49];
-    const double dv_arm_cyl_rod_z = a[50];
-    const double dv_bucket_cyl_barrel_x = a[54];
-    const double dv_bucket_cyl_barrel_y = a[55];
-    const double dv_bucket_cyl_barrel_z = a[56];
-    const double dv_bucket_cyl_barrel_theta_x = a[57];
-    const double dv_bucket_cyl_barrel_theta_y = a[58];
-    const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double dv_bucket_cyl_rod_x = a[60];
-    const double dv_bucket_cyl_rod_y = a[61];
-    const double dv_bucket_cyl_rod_z = a[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z;
-    const double c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c38 = -c37 + c36;
-    const double c39 = c38*v_boom_cyl_l_barrel_theta_z;
-    const double c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y;
-    const double c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c43 = -c42 + c41;
-    const double c44 = c43*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x;
-    const double c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z;
-    const double c47 = c43*v_boom_cyl_l_barrel_theta_x;
-    const double c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c50 = -c49 + c48;
-    const double c51 = c50*v_boom_cyl_l_barrel_theta_z;
-    const double c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y;
-    const double c53 = c38*v_boom_cyl_l_barrel_theta_x;
-    const double c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x;
-    const double c55 = c50*v_boom_cyl_l_barrel_theta_y;
-    const double c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z;
-    const double c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
-    const double c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z;
-    const double c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x;
-    const double c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x;
-    const double c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x;
-    const double c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y;
-    const double c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z;
-    const double c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y;
-    const double c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c72 = -c71 + c70;
-    const double c73 = c72*v_arm_cyl_barrel_theta_y;
-    const double c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c76 = -c75 + c74;
-    const double c77 = c76*v_arm_cyl_barrel_theta_z;
-    const double c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x;
-    const double c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z;
-    const double c80 = c72*v_arm_cyl_barrel_theta_x;
-    const double c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c83 = -c82 + c81;
-    const double c84 = c83*v_arm_cyl_barrel_theta_z;
-    const double c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y;
-    const double c86 = c76*v_arm_cyl_barrel_theta_x;
-    const double c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x;
-    const double c88 = c83*v_arm_cyl_barrel_theta_y;
-    const double c89 = -arm_cyl_rod_z + arm_cyl_barrel_z;
-    const double c90 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c92 = arm_cyl_barrel_y - arm_cyl_rod_y;
-    const double c93 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c95 = -arm_cyl_rod_x + arm_cyl_barrel_x;
-    const double c96 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z;
-    const double c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y;
-    const double c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z;
-    const double c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y;
-    const double c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z;
-    const double c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c105 = -c104 + c103;
-    const double c106 = c105*v_bucket_cyl_barrel_theta_z;
-    const double c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c109 = -c108 + c107;
-    const double c110 = c109*v_bucket_cyl_barrel_theta_y;
-    const double c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x;
-    const double c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z;
-    const double c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c115 = -c114 + c113;
-    const double c116 = c115*v_bucket_cyl_barrel_theta_z;
-    const double c117 = c109*v_bucket_cyl_barrel_theta_x;
-    const double c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y;
-    const double c119 = c115*v_bucket_cyl_barrel_theta_y;
-    const double c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x;
-    const double c121 = c105*v_bucket_cyl_barrel_theta_x;
-    const double c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
-    const double c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x;
-    const double c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z;
-    const double c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y;
-    const double c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z;
-    const double c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = -c44 - c40 + c39 + c35;
-    out[7] = -c51 + c47 - c46 + c45;
-    out[8] = c55 - c54 - c53 + c52;
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20;
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20;
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10;
-    out[12] = c44 + c40 - c39 - c35;
-    out[13] = c51 - c47 + c46 - c45;
-    out[14] = -c55 + c54 + c53 - c52;
-    out[15] = c49 - c48 - c50;
-    out[16] = -c38 + c37 - c36;
-    out[17] = -c43 + c42 - c41;
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20;
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x;
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00;
-    out[21] = 2.0*c48 - 2.0*c49;
-    out[22] = 2.0*c36 - 2.0*c37;
-    out[23] = 2.0*c41 - 2.0*c42;
-    out[24] = c77 - c73 - c69 + c68;
-    out[25] = -c84 + c80 - c79 + c78;
-    out[26] = c88 - c87 - c86 + c85;
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20;
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20;
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10;
-    out[30] = -c77 + c73 + c69 - c68;
-    out[31] = c84 - c80 + c79 - c78;
-    out[32] = -c88 + c87 + c86 - c85;
-    out[33] = -c83 + c82 - c81;
-    out[34] = -c76 + c75 - c74;
-    out[35] = -c72 + c71 - c70;
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x;
-    out[39] = 2.0*c81 - 2.0*c82;
-    out[40] = 2.0*c74 - 2.0*c75;
-    out[41] = 2.0*c70 - 2.0*c71;
-    out[42] = -c110 + c106 + c102 - c101;
-    out[43] = c117 - c116 - c112 + c111;
-    out[44] = -c121 - c120 + c119 + c118;
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20;
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20;
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10;
-    out[48] = c110 - c106 - c102 + c101;
-    out[49] = -c117 + c116 + c112 - c111;
-    out[50] = c121 + c120 - c119 - c118;
-    out[51] = -c115 + c114 - c113;
-    out[52] = -c105 + c104 - c103;
-    out[53] = c108 - c107 - c109;
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10;
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20;
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10;
-    out[57] = 2.0*c113 - 2.0*c114;
-    out[58] = 2.0*c103 - 2.0*c104;
-    out[59] = 2.0*c107 - 2.0*c108;
-}
-
-/* Phi_p values of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_phi_p_digging_fast(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_dvel_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y;
-    const double c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z;
-    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x;
-    const double c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x;
-    const double c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y;
-    const double c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z;
-    const double c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c8 - c7;
-    out[4] = -c10 + c9;
-    out[5] = c12 - c11;
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20;
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20;
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
-    out[9] = -c8 + c7;
-    out[10] = c10 - c9;
-    out[11] = -c12 + c11;
-    out[12] = -c17 + c16;
-    out[13] = c19 - c18;
-    out[14] = c21 - c20;
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20;
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20;
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10;
-    out[18] = c17 - c16;
-    out[19] = -c19 + c18;
-    out[20] = -c21 + c20;
-    out[21] = -c26 + c25;
-    out[22] = c28 - c27;
-    out[23] = c30 - c29;
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20;
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20;
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10;
-    out[27] = c26 - c25;
-    out[28] = -c28 + c27;
-    out[29] = -c30 + c29;
-}
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging_fast'. */
-void excavator_quaternion_compute_drivers_dacc_digging_fast(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_boom_cyl_l_barrel_x = a[12];
-    const double dv_boom_cyl_l_barrel_y = a[13];
-    const double dv_boom_cyl_l_barrel_z = a[14];
-    const double dv_boom_cyl_l_barrel_theta_x = a[15];
-    const double dv_boom_cyl_l_barrel_theta_y = a[16];
-    const double dv_boom_cyl_l_barrel_theta_z = a[17];
-    const double dv_boom_cyl_l_rod_x = a[18];
-    const double dv_boom_cyl_l_rod_y = a[19];
-    const double dv_boom_cyl_l_rod_z = a[20];
-    const double dv_arm_cyl_barrel_x = a[42];
-    const double dv_arm_cyl_barrel_y = a[43];
-    const double dv_arm_cyl_barrel_z = a[44];
-    const double dv_arm_cyl_barrel_theta_x = a[45];
-    const double dv_arm_cyl_barrel_theta_y = a[46];
-    const double dv_arm_cyl_barrel_theta_z = a[47];
-    const double dv_arm_cyl_rod_x = a[48];
-    const double dv_arm_cyl_rod_y = a[49];
-    const double dv_arm_cyl_rod_z = a[50];
-    const double dv_bucket_cyl_barrel_x = a[54];
-    const double dv_bucket_cyl_barrel_y = a[55];
-    const double dv_bucket_cyl_barrel_z = a[56];
-    const double dv_bucket_cyl_barrel_theta_x = a[57];
-    const double dv_bucket_cyl_barrel_theta_y = a[58];
-    const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double dv_bucket_cyl_rod_x = a[60];
-    const double dv_bucket_cyl_rod_y = a[61];
-    const double dv_bucket_cyl_rod_z = a[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z;
-    const double c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c38 = -c37 + c36;
-    const double c39 = c38*v_boom_cyl_l_barrel_theta_z;
-    const double c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y;
-    const double c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c43 = -c42 + c41;
-    const double c44 = c43*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x;
-    const double c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z;
-    const double c47 = c43*v_boom_cyl_l_barrel_theta_x;
-    const double c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c50 = -c49 + c48;
-    const double c51 = c50*v_boom_cyl_l_barrel_theta_z;
-    const double c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y;
-    const double c53 = c38*v_boom_cyl_l_barrel_theta_x;
-    const double c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x;
-    const double c55 = c50*v_boom_cyl_l_barrel_theta_y;
-    const double c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z;
-    const double c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
-    const double c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z;
-    const double c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x;
-    const double c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x;
-    const double c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x;
-    const double c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y;
-    const double c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z;
-    const double c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y;
-    const double c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c72 = -c71 + c70;
-    const double c73 = c72*v_arm_cyl_barrel_theta_y;
-    const double c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c76 = -c75 + c74;
-    const double c77 = c76*v_arm_cyl_barrel_theta_z;
-    const double c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x;
-    const double c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z;
-    const double c80 = c72*v_arm_cyl_barrel_theta_x;
-    const double c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c83 = -c82 + c81;
-    const double c84 = c83*v_arm_cyl_barrel_theta_z;
-    const double c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y;
-    const double c86 = c76*v_arm_cyl_barrel_theta_x;
-    const double c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x;
-    const double c88 = c83*v_arm_cyl_barrel_theta_y;
-    const double c89 = -arm_cyl_rod_z + arm_cyl_barrel_z;
-    const double c90 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c92 = arm_cyl_barrel_y - arm_cyl_rod_y;
-    const double c93 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c95 = -arm_cyl_rod_x + arm_cyl_barrel_x;
-    const double c96 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z;
-    const double c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y;
-    const double c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z;
-    const double c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y;
-    const double c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z;
-    const double c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c105 = -c104 + c103;
-    const double c106 = c105*v_bucket_cyl_barrel_theta_z;
-    const double c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c109 = -c108 + c107;
-    const double c110 = c109*v_bucket_cyl_barrel_theta_y;
-    const double c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x;
-    const double c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z;
-    const double c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c115 = -c114 + c113;
-    const double c116 = c115*v_bucket_cyl_barrel_theta_z;
-    const double c117 = c109*v_bucket_cyl_barrel_theta_x;
-    const double c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y;
-    const double c119 = c115*v_bucket_cyl_barrel_theta_y;
-    const double c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x;
-    const double c121 = c105*v_bucket_cyl_barrel_theta_x;
-    const double c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
-    const double c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x;
-    const double c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z;
-    const double c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y;
-    const double c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z;
-    const double c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = -c44 - c40 + c39 + c35;
-    out[7] = -c51 + c47 - c46 + c45;
-    out[8] = c55 - c54 - c53 + c52;
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20;
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20;
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10;
-    out[12] = c44 + c40 - c39 - c35;
-    out[13] = c51 - c47 + c46 - c45;
-    out[14] = -c55 + c54 + c53 - c52;
-    out[15] = c49 - c48 - c50;
-    out[16] = -c38 + c37 - c36;
-    out[17] = -c43 + c42 - c41;
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20;
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x;
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00;
-    out[21] = 2.0*c48 - 2.0*c49;
-    out[22] = 2.0*c36 - 2.0*c37;
-    out[23] = 2.0*c41 - 2.0*c42;
-    out[24] = c77 - c73 - c69 + c68;
-    out[25] = -c84 + c80 - c79 + c78;
-    out[26] = c88 - c87 - c86 + c85;
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20;
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20;
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10;
-    out[30] = -c77 + c73 + c69 - c68;
-    out[31] = c84 - c80 + c79 - c78;
-    out[32] = -c88 + c87 + c86 - c85;
-    out[33] = -c83 + c82 - c81;
-    out[34] = -c76 + c75 - c74;
-    out[35] = -c72 + c71 - c70;
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x;
-    out[39] = 2.0*c81 - 2.0*c82;
-    out[40] = 2.0*c74 - 2.0*c75;
-    out[41] = 2.0*c70 - 2.0*c71;
-    out[42] = -c110 + c106 + c102 - c101;
-    out[43] = c117 - c116 - c112 + c111;
-    out[44] = -c121 - c120 + c119 + c118;
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20;
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20;
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10;
-    out[48] = c110 - c106 - c102 + c101;
-    out[49] = -c117 + c116 + c112 - c111;
-    out[50] = c121 + c120 - c119 - c118;
-    out[51] = -c115 + c114 - c113;
-    out[52] = -c105 + c104 - c103;
-    out[53] = c108 - c107 - c109;
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10;
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20;
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10;
-    out[57] = 2.0*c113 - 2.0*c114;
-    out[58] = 2.0*c103 - 2.0*c104;
-    out[59] = 2.0*c107 - 2.0*c108;
-}
-
-/* Phi_p values of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_phi_p_digging_paced(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_dvel_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y;
-    const double c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z;
-    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x;
-    const double c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x;
-    const double c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y;
-    const double c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z;
-    const double c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c8 - c7;
-    out[4] = -c10 + c9;
-    out[5] = c12 - c11;
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20;
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20;
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
-    out[9] = -c8 + c7;
-    out[10] = c10 - c9;
-    out[11] = -c12 + c11;
-    out[12] = -c17 + c16;
-    out[13] = c19 - c18;
-    out[14] = c21 - c20;
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20;
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20;
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10;
-    out[18] = c17 - c16;
-    out[19] = -c19 + c18;
-    out[20] = -c21 + c20;
-    out[21] = -c26 + c25;
-    out[22] = c28 - c27;
-    out[23] = c30 - c29;
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20;
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20;
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10;
-    out[27] = c26 - c25;
-    out[28] = -c28 + c27;
-    out[29] = -c30 + c29;
-}
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging_paced'. */
-void excavator_quaternion_compute_drivers_dacc_digging_paced(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_boom_cyl_l_barrel_x = a[12];
-    const double dv_boom_cyl_l_barrel_y = a[13];
-    const double dv_boom_cyl_l_barrel_z = a[14];
-    const double dv_boom_cyl_l_barrel_theta_x = a[15];
-    const double dv_boom_cyl_l_barrel_theta_y = a[16];
-    const double dv_boom_cyl_l_barrel_theta_z = a[17];
-    const double dv_boom_cyl_l_rod_x = a[18];
-    const double dv_boom_cyl_l_rod_y = a[19];
-    const double dv_boom_cyl_l_rod_z = a[20];
-    const double dv_arm_cyl_barrel_x = a[42];
-    const double dv_arm_cyl_barrel_y = a[43];
-    const double dv_arm_cyl_barrel_z = a[44];
-    const double dv_arm_cyl_barrel_theta_x = a[45];
-    const double dv_arm_cyl_barrel_theta_y = a[46];
-    const double dv_arm_cyl_barrel_theta_z = a[47];
-    const double dv_arm_cyl_rod_x = a[48];
-    const double dv_arm_cyl_rod_y = a[49];
-    const double dv_arm_cyl_rod_z = a[50];
-    const double dv_bucket_cyl_barrel_x = a[54];
-    const double dv_bucket_cyl_barrel_y = a[55];
-    const double dv_bucket_cyl_barrel_z = a[56];
-    const double dv_bucket_cyl_barrel_theta_x = a[57];
-    const double dv_bucket_cyl_barrel_theta_y = a[58];
-    const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double dv_bucket_cyl_rod_x = a[60];
-    const double dv_bucket_cyl_rod_y = a[61];
-    const double dv_bucket_cyl_rod_z = a[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z;
-    const double c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c38 = -c37 + c36;
-    const double c39 = c38*v_boom_cyl_l_barrel_theta_z;
-    const double c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y;
-    const double c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c43 = -c42 + c41;
-    const double c44 = c43*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x;
-    const double c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z;
-    const double c47 = c43*v_boom_cyl_l_barrel_theta_x;
-    const double c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c50 = -c49 + c48;
-    const double c51 = c50*v_boom_cyl_l_barrel_theta_z;
-    const double c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y;
-    const double c53 = c38*v_boom_cyl_l_barrel_theta_x;
-    const double c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x;
-    const double c55 = c50*v_boom_cyl_l_barrel_theta_y;
-    const double c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z;
-    const double c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
-    const double c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z;
-    const double c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x;
-    const double c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x;
-    const double c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x;
-    const double c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y;
-    const double c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z;
-    const double c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y;
-    const double c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c72 = -c71 + c70;
-    const double c73 = c72*v_arm_cyl_barrel_theta_y;
-    const double c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c76 = -c75 + c74;
-    const double c77 = c76*v_arm_cyl_barrel_theta_z;
-    const double c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x;
-    const double c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z;
-    const double c80 = c72*v_arm_cyl_barrel_theta_x;
-    const double c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c83 = -c82 + c81;
-    const double c84 = c83*v_arm_cyl_barrel_theta_z;
-    const double c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y;
-    const double c86 = c76*v_arm_cyl_barrel_theta_x;
-    const double c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x;
-    const double c88 = c83*v_arm_cyl_barrel_theta_y;
-    const double c89 = -arm_cyl_rod_z + arm_cyl_barrel_z;
-    const double c90 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c92 = arm_cyl_barrel_y - arm_cyl_rod_y;
-    const double c93 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c95 = -arm_cyl_rod_x + arm_cyl_barrel_x;
-    const double c96 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z;
-    const double c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y;
-    const double c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z;
-    const double c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y;
-    const double c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z;
-    const double c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c105 = -c104 + c103;
-    const double c106 = c105*v_bucket_cyl_barrel_theta_z;
-    const double c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c109 = -c108 + c107;
-    const double c110 = c109*v_bucket_cyl_barrel_theta_y;
-    const double c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x;
-    const double c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z;
-    const double c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c115 = -c114 + c113;
-    const double c116 = c115*v_bucket_cyl_barrel_theta_z;
-    const double c117 = c109*v_bucket_cyl_barrel_theta_x;
-    const double c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y;
-    const double c119 = c115*v_bucket_cyl_barrel_theta_y;
-    const double c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x;
-    const double c121 = c105*v_bucket_cyl_barrel_theta_x;
-    const double c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
-    const double c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x;
-    const double c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z;
-    const double c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y;
-    const double c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z;
-    const double c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = -c44 - c40 + c39 + c35;
-    out[7] = -c51 + c47 - c46 + c45;
-    out[8] = c55 - c54 - c53 + c52;
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20;
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20;
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10;
-    out[12] = c44 + c40 - c39 - c35;
-    out[13] = c51 - c47 + c46 - c45;
-    out[14] = -c55 + c54 + c53 - c52;
-    out[15] = c49 - c48 - c50;
-    out[16] = -c38 + c37 - c36;
-    out[17] = -c43 + c42 - c41;
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20;
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x;
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00;
-    out[21] = 2.0*c48 - 2.0*c49;
-    out[22] = 2.0*c36 - 2.0*c37;
-    out[23] = 2.0*c41 - 2.0*c42;
-    out[24] = c77 - c73 - c69 + c68;
-    out[25] = -c84 + c80 - c79 + c78;
-    out[26] = c88 - c87 - c86 + c85;
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20;
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20;
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10;
-    out[30] = -c77 + c73 + c69 - c68;
-    out[31] = c84 - c80 + c79 - c78;
-    out[32] = -c88 + c87 + c86 - c85;
-    out[33] = -c83 + c82 - c81;
-    out[34] = -c76 + c75 - c74;
-    out[35] = -c72 + c71 - c70;
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x;
-    out[39] = 2.0*c81 - 2.0*c82;
-    out[40] = 2.0*c74 - 2.0*c75;
-    out[41] = 2.0*c70 - 2.0*c71;
-    out[42] = -c110 + c106 + c102 - c101;
-    out[43] = c117 - c116 - c112 + c111;
-    out[44] = -c121 - c120 + c119 + c118;
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20;
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20;
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10;
-    out[48] = c110 - c106 - c102 + c101;
-    out[49] = -c117 + c116 + c112 - c111;
-    out[50] = c121 + c120 - c119 - c118;
-    out[51] = -c115 + c114 - c113;
-    out[52] = -c105 + c104 - c103;
-    out[53] = c108 - c107 - c109;
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10;
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20;
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10;
-    out[57] = 2.0*c113 - 2.0*c114;
-    out[58] = 2.0*c103 - 2.0*c104;
-    out[59] = 2.0*c107 - 2.0*c108;
-}
-
-/* Phi_p values of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_phi_p_oscillation(const double *q, const double *u, const double *p, double *out) {
-    (void)q;
-    (void)u;
-    (void)p;
-    (void)out;
-}
-
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_dvel_oscillation(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (1.0/2.0)*u0;
-    const double c1 = cos(c0);
-    const double c2 = (1.0/2.0)*(-c1*v_upper_theta_z + c1*ud0);
-    const double c3 = sin(c0);
-    const double c4 = (1.0/2.0)*(-c1*v_upper_theta_x - c3*v_upper_theta_y);
-    const double c5 = (1.0/2.0)*(-c3*v_upper_theta_x + c1*v_upper_theta_y);
-    const double c6 = (1.0/2.0)*(-c3*v_upper_theta_z + c3*ud0);
-    const double c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y;
-    const double c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z;
-    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x;
-    const double c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x;
-    const double c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y;
-    const double c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z;
-    const double c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x;
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx;
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy;
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz;
-    out[3] = c8 - c7;
-    out[4] = -c10 + c9;
-    out[5] = c12 - c11;
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20;
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20;
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
-    out[9] = -c8 + c7;
-    out[10] = c10 - c9;
-    out[11] = -c12 + c11;
-    out[12] = -c17 + c16;
-    out[13] = c19 - c18;
-    out[14] = c21 - c20;
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20;
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20;
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10;
-    out[18] = c17 - c16;
-    out[19] = -c19 + c18;
-    out[20] = -c21 + c20;
-    out[21] = -c26 + c25;
-    out[22] = c28 - c27;
-    out[23] = c30 - c29;
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20;
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20;
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10;
-    out[27] = c26 - c25;
-    out[28] = -c28 + c27;
-    out[29] = -c30 + c29;
-}
-
-#endif
-
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 11) && !defined(KINEGEN_NO_SENSITIVITIES)
-
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'oscillation'. */
-void excavator_quaternion_compute_drivers_dacc_oscillation(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
-    const double upper_qw = q[3];
-    const double upper_qx = q[4];
-    const double upper_qy = q[5];
-    const double upper_qz = q[6];
-    const double boom_cyl_l_barrel_x = q[14];
-    const double boom_cyl_l_barrel_y = q[15];
-    const double boom_cyl_l_barrel_z = q[16];
-    const double boom_cyl_l_barrel_qw = q[17];
-    const double boom_cyl_l_barrel_qx = q[18];
-    const double boom_cyl_l_barrel_qy = q[19];
-    const double boom_cyl_l_barrel_qz = q[20];
-    const double boom_cyl_l_rod_x = q[21];
-    const double boom_cyl_l_rod_y = q[22];
-    const double boom_cyl_l_rod_z = q[23];
-    const double arm_cyl_barrel_x = q[49];
-    const double arm_cyl_barrel_y = q[50];
-    const double arm_cyl_barrel_z = q[51];
-    const double arm_cyl_barrel_qw = q[52];
-    const double arm_cyl_barrel_qx = q[53];
-    const double arm_cyl_barrel_qy = q[54];
-    const double arm_cyl_barrel_qz = q[55];
-    const double arm_cyl_rod_x = q[56];
-    const double arm_cyl_rod_y = q[57];
-    const double arm_cyl_rod_z = q[58];
-    const double bucket_cyl_barrel_x = q[63];
-    const double bucket_cyl_barrel_y = q[64];
-    const double bucket_cyl_barrel_z = q[65];
-    const double bucket_cyl_barrel_qw = q[66];
-    const double bucket_cyl_barrel_qx = q[67];
-    const double bucket_cyl_barrel_qy = q[68];
-    const double bucket_cyl_barrel_qz = q[69];
-    const double bucket_cyl_rod_x = q[70];
-    const double bucket_cyl_rod_y = q[71];
-    const double bucket_cyl_rod_z = q[72];
-    const double v_upper_theta_x = v[3];
-    const double v_upper_theta_y = v[4];
-    const double v_upper_theta_z = v[5];
-    const double v_boom_cyl_l_barrel_x = v[12];
-    const double v_boom_cyl_l_barrel_y = v[13];
-    const double v_boom_cyl_l_barrel_z = v[14];
-    const double v_boom_cyl_l_barrel_theta_x = v[15];
-    const double v_boom_cyl_l_barrel_theta_y = v[16];
-    const double v_boom_cyl_l_barrel_theta_z = v[17];
-    const double v_boom_cyl_l_rod_x = v[18];
-    const double v_boom_cyl_l_rod_y = v[19];
-    const double v_boom_cyl_l_rod_z = v[20];
-    const double v_arm_cyl_barrel_x = v[42];
-    const double v_arm_cyl_barrel_y = v[43];
-    const double v_arm_cyl_barrel_z = v[44];
-    const double v_arm_cyl_barrel_theta_x = v[45];
-    const double v_arm_cyl_barrel_theta_y = v[46];
-    const double v_arm_cyl_barrel_theta_z = v[47];
-    const double v_arm_cyl_rod_x = v[48];
-    const double v_arm_cyl_rod_y = v[49];
-    const double v_arm_cyl_rod_z = v[50];
-    const double v_bucket_cyl_barrel_x = v[54];
-    const double v_bucket_cyl_barrel_y = v[55];
-    const double v_bucket_cyl_barrel_z = v[56];
-    const double v_bucket_cyl_barrel_theta_x = v[57];
-    const double v_bucket_cyl_barrel_theta_y = v[58];
-    const double v_bucket_cyl_barrel_theta_z = v[59];
-    const double v_bucket_cyl_rod_x = v[60];
-    const double v_bucket_cyl_rod_y = v[61];
-    const double v_bucket_cyl_rod_z = v[62];
-    const double dv_upper_theta_x = a[3];
-    const double dv_upper_theta_y = a[4];
-    const double dv_upper_theta_z = a[5];
-    const double dv_boom_cyl_l_barrel_x = a[12];
-    const double dv_boom_cyl_l_barrel_y = a[13];
-    const double dv_boom_cyl_l_barrel_z = a[14];
-    const double dv_boom_cyl_l_barrel_theta_x = a[15];
-    const double dv_boom_cyl_l_barrel_theta_y = a[16];
-    const double dv_boom_cyl_l_barrel_theta_z = a[17];
-    const double dv_boom_cyl_l_rod_x = a[18];
-    const double dv_boom_cyl_l_rod_y = a[19];
-    const double dv_boom_cyl_l_rod_z = a[20];
-    const double dv_arm_cyl_barrel_x = a[42];
-    const double dv_arm_cyl_barrel_y = a[43];
-    const double dv_arm_cyl_barrel_z = a[44];
-    const double dv_arm_cyl_barrel_theta_x = a[45];
-    const double dv_arm_cyl_barrel_theta_y = a[46];
-    const double dv_arm_cyl_barrel_theta_z = a[47];
-    const double dv_arm_cyl_rod_x = a[48];
-    const double dv_arm_cyl_rod_y = a[49];
-    const double dv_arm_cyl_rod_z = a[50];
-    const double dv_bucket_cyl_barrel_x = a[54];
-    const double dv_bucket_cyl_barrel_y = a[55];
-    const double dv_bucket_cyl_barrel_z = a[56];
-    const double dv_bucket_cyl_barrel_theta_x = a[57];
-    const double dv_bucket_cyl_barrel_theta_y = a[58];
-    const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double dv_bucket_cyl_rod_x = a[60];
-    const double dv_bucket_cyl_rod_y = a[61];
-    const double dv_bucket_cyl_rod_z = a[62];
-    const double u0 = u[0];
-    const double ud0 = ud[0];
-    const double udd0 = udd[0];
-    (void)p;
-    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
-    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
-    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
-    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
-    const double c0 = (ud0*ud0);
-    const double c1 = (1.0/2.0)*u0;
-    const double c2 = sin(c1);
-    const double c3 = (1.0/2.0)*c2;
-    const double c4 = cos(c1);
-    const double c5 = c4*v_upper_theta_y;
-    const double c6 = c2*v_upper_theta_x;
-    const double c7 = (1.0/2.0)*(-c6 + c5);
-    const double c8 = c4*v_upper_theta_x;
-    const double c9 = c2*v_upper_theta_y;
-    const double c10 = (1.0/2.0)*(-c9 - c8);
-    const double c11 = ud0*v_upper_theta_z;
-    const double c12 = (v_upper_theta_z*v_upper_theta_z);
-    const double c13 = (1.0/2.0)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3);
-    const double c14 = (1.0/2.0)*c5;
-    const double c15 = (1.0/2.0)*c6;
-    const double c16 = 2.0*ud0;
-    const double c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z;
-    const double c18 = (1.0/2.0)*upper_qz;
-    const double c19 = (1.0/2.0)*c9;
-    const double c20 = (1.0/2.0)*c8;
-    const double c21 = (1.0/2.0)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z);
-    const double c22 = (1.0/2.0)*c4;
-    const double c23 = (1.0/2.0)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22);
-    const double c24 = (1.0/2.0)*upper_qw;
-    const double c25 = (1.0/2.0)*upper_qx;
-    const double c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y;
-    const double c27 = (1.0/2.0)*upper_qy;
-    const double c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x;
-    const double c29 = c3*upper_qy;
-    const double c30 = c22*upper_qx;
-    const double c31 = c3*upper_qx;
-    const double c32 = c22*upper_qy;
-    const double c33 = c3*upper_qw;
-    const double c34 = c22*upper_qz;
-    const double c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z;
-    const double c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00;
-    const double c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20;
-    const double c38 = -c37 + c36;
-    const double c39 = c38*v_boom_cyl_l_barrel_theta_z;
-    const double c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y;
-    const double c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10;
-    const double c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00;
-    const double c43 = -c42 + c41;
-    const double c44 = c43*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x;
-    const double c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z;
-    const double c47 = c43*v_boom_cyl_l_barrel_theta_x;
-    const double c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20;
-    const double c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10;
-    const double c50 = -c49 + c48;
-    const double c51 = c50*v_boom_cyl_l_barrel_theta_z;
-    const double c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y;
-    const double c53 = c38*v_boom_cyl_l_barrel_theta_x;
-    const double c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x;
-    const double c55 = c50*v_boom_cyl_l_barrel_theta_y;
-    const double c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z;
-    const double c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
-    const double c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z;
-    const double c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x;
-    const double c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x;
-    const double c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y;
-    const double c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x;
-    const double c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y;
-    const double c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z;
-    const double c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y;
-    const double c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
-    const double c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
-    const double c72 = -c71 + c70;
-    const double c73 = c72*v_arm_cyl_barrel_theta_y;
-    const double c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
-    const double c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
-    const double c76 = -c75 + c74;
-    const double c77 = c76*v_arm_cyl_barrel_theta_z;
-    const double c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x;
-    const double c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z;
-    const double c80 = c72*v_arm_cyl_barrel_theta_x;
-    const double c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
-    const double c83 = -c82 + c81;
-    const double c84 = c83*v_arm_cyl_barrel_theta_z;
-    const double c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y;
-    const double c86 = c76*v_arm_cyl_barrel_theta_x;
-    const double c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x;
-    const double c88 = c83*v_arm_cyl_barrel_theta_y;
-    const double c89 = -arm_cyl_rod_z + arm_cyl_barrel_z;
-    const double c90 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c92 = arm_cyl_barrel_y - arm_cyl_rod_y;
-    const double c93 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z;
-    const double c95 = -arm_cyl_rod_x + arm_cyl_barrel_x;
-    const double c96 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z;
-    const double c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y;
-    const double c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z;
-    const double c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y;
-    const double c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z;
-    const double c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00;
-    const double c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20;
-    const double c105 = -c104 + c103;
-    const double c106 = c105*v_bucket_cyl_barrel_theta_z;
-    const double c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10;
-    const double c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00;
-    const double c109 = -c108 + c107;
-    const double c110 = c109*v_bucket_cyl_barrel_theta_y;
-    const double c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x;
-    const double c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z;
-    const double c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20;
-    const double c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10;
-    const double c115 = -c114 + c113;
-    const double c116 = c115*v_bucket_cyl_barrel_theta_z;
-    const double c117 = c109*v_bucket_cyl_barrel_theta_x;
-    const double c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y;
-    const double c119 = c115*v_bucket_cyl_barrel_theta_y;
-    const double c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x;
-    const double c121 = c105*v_bucket_cyl_barrel_theta_x;
-    const double c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
-    const double c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x;
-    const double c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z;
-    const double c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y;
-    const double c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z;
-    const double c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y;
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx;
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy;
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz;
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26;
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28;
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy;
-    out[6] = -c44 - c40 + c39 + c35;
-    out[7] = -c51 + c47 - c46 + c45;
-    out[8] = c55 - c54 - c53 + c52;
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20;
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20;
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10;
-    out[12] = c44 + c40 - c39 - c35;
-    out[13] = c51 - c47 + c46 - c45;
-    out[14] = -c55 + c54 + c53 - c52;
-    out[15] = c49 - c48 - c50;
-    out[16] = -c38 + c37 - c36;
-    out[17] = -c43 + c42 - c41;
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20;
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x;
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00;
-    out[21] = 2.0*c48 - 2.0*c49;
-    out[22] = 2.0*c36 - 2.0*c37;
-    out[23] = 2.0*c41 - 2.0*c42;
-    out[24] = c77 - c73 - c69 + c68;
-    out[25] = -c84 + c80 - c79 + c78;
-    out[26] = c88 - c87 - c86 + c85;
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20;
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20;
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10;
-    out[30] = -c77 + c73 + c69 - c68;
-    out[31] = c84 - c80 + c79 - c78;
-    out[32] = -c88 + c87 + c86 - c85;
-    out[33] = -c83 + c82 - c81;
-    out[34] = -c76 + c75 - c74;
-    out[35] = -c72 + c71 - c70;
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x;
-    out[39] = 2.0*c81 - 2.0*c82;
-    out[40] = 2.0*c74 - 2.0*c75;
-    out[41] = 2.0*c70 - 2.0*c71;
-    out[42] = -c110 + c106 + c102 - c101;
-    out[43] = c117 - c116 - c112 + c111;
-    out[44] = -c121 - c120 + c119 + c118;
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20;
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20;
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10;
-    out[48] = c110 - c106 - c102 + c101;
-    out[49] = -c117 + c116 + c112 - c111;
-    out[50] = c121 + c120 - c119 - c118;
-    out[51] = -c115 + c114 - c113;
-    out[52] = -c105 + c104 - c103;
-    out[53] = c108 - c107 - c109;
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10;
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20;
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10;
-    out[57] = 2.0*c113 - 2.0*c114;
-    out[58] = 2.0*c103 - 2.0*c104;
-    out[59] = 2.0*c107 - 2.0*c108;
-}
+#if (!defined(KINEGEN_PART) || KINEGEN_PART == 9) && !defined(KINEGEN_NO_SENSITIVITIES)
 
 /* d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), a parameter per column). */
 void excavator_quaternion_compute_points_p(const double *p, double *out) {
@@ -19385,10 +14501,6 @@ void excavator_quaternion_compute_frames_d_part0(const double *q, const double *
     out[239] = z_bucket_cyl_barrel_theta_z;
 }
 
-#endif
-
-#if (!defined(KINEGEN_PART) || KINEGEN_PART == 12) && !defined(KINEGEN_NO_SENSITIVITIES)
-
 /* Per body: the change of the frames kernel's 24 values when q moves along w, v by y and a by z. Rows 240 to 335. */
 void excavator_quaternion_compute_frames_d_part1(const double *q, const double *v, const double *a, const double *w, const double *y, const double *z, double *out) {
     const double bucket_cyl_rod_qw = q[73];
@@ -19833,7 +14945,7 @@ static void input_ranges_level_cut(const double *span, double *input_ranges) {
 /* Phi_p = dPhi/dp (n_p columns) of case 'level_cut': values at phi_p_rows, phi_p_cols. */
 static void phi_p_level_cut(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_level_cut(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -19925,18 +15037,18 @@ static void call_dacc_level_cut(const double *const *x, double *const *y) {
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
 static void phi_jac_trench_wall(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_trench_wall(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_level_cut(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_trench_wall(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_level_cut(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
 static void nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_trench_wall(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_level_cut(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
@@ -19944,7 +15056,7 @@ static void gamma_trench_wall(const double *q, const double *v, const double *u,
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_level_cut(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
@@ -19961,7 +15073,7 @@ static void input_ranges_trench_wall(const double *span, double *input_ranges) {
 /* Phi_p = dPhi/dp (n_p columns) of case 'trench_wall': values at phi_p_rows, phi_p_cols. */
 static void phi_p_trench_wall(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_trench_wall(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -19975,7 +15087,7 @@ static void dvel_trench_wall(const double *q, const double *v, const double *u, 
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_trench_wall(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_level_cut(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20000,7 +15112,7 @@ static void dacc_trench_wall(const double *q, const double *v, const double *a, 
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_trench_wall(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_level_cut(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 
@@ -20053,18 +15165,18 @@ static void call_dacc_trench_wall(const double *const *x, double *const *y) {
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
 static void phi_jac_bucket_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_bucket_toggle(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_bucket_toggle(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
 static void nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_bucket_toggle(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
@@ -20072,7 +15184,7 @@ static void gamma_bucket_toggle(const double *q, const double *v, const double *
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -20089,7 +15201,7 @@ static void input_ranges_bucket_toggle(const double *span, double *input_ranges)
 /* Phi_p = dPhi/dp (n_p columns) of case 'bucket_toggle': values at phi_p_rows, phi_p_cols. */
 static void phi_p_bucket_toggle(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_bucket_toggle(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -20103,7 +15215,7 @@ static void dvel_bucket_toggle(const double *q, const double *v, const double *u
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_bucket_toggle(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_digging(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20128,7 +15240,7 @@ static void dacc_bucket_toggle(const double *q, const double *v, const double *a
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_bucket_toggle(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_digging(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 
@@ -20181,18 +15293,18 @@ static void call_dacc_bucket_toggle(const double *const *x, double *const *y) {
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. */
 static void phi_jac_bucket_stroke(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_bucket_stroke(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_bucket_stroke(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). */
 static void nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_bucket_stroke(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. */
@@ -20200,7 +15312,7 @@ static void gamma_bucket_stroke(const double *q, const double *v, const double *
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_bucket_stroke(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_stroke' at time t: u, then du/dt, then d2u/dt2. */
@@ -20217,7 +15329,7 @@ static void input_ranges_bucket_stroke(const double *span, double *input_ranges)
 /* Phi_p = dPhi/dp (n_p columns) of case 'bucket_stroke': values at phi_p_rows, phi_p_cols. */
 static void phi_p_bucket_stroke(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_bucket_stroke(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -20231,7 +15343,7 @@ static void dvel_bucket_stroke(const double *q, const double *v, const double *u
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_bucket_stroke(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_digging(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20256,7 +15368,7 @@ static void dacc_bucket_stroke(const double *q, const double *v, const double *a
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_bucket_stroke(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_digging(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 
@@ -20309,18 +15421,18 @@ static void call_dacc_bucket_stroke(const double *const *x, double *const *y) {
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
 static void phi_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_bucket_near_toggle(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_bucket_near_toggle(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
 static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_bucket_near_toggle(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
@@ -20328,7 +15440,7 @@ static void gamma_bucket_near_toggle(const double *q, const double *v, const dou
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -20345,7 +15457,7 @@ static void input_ranges_bucket_near_toggle(const double *span, double *input_ra
 /* Phi_p = dPhi/dp (n_p columns) of case 'bucket_near_toggle': values at phi_p_rows, phi_p_cols. */
 static void phi_p_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_bucket_near_toggle(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -20359,7 +15471,7 @@ static void dvel_bucket_near_toggle(const double *q, const double *v, const doub
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_bucket_near_toggle(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_digging(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20384,7 +15496,7 @@ static void dacc_bucket_near_toggle(const double *q, const double *v, const doub
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_bucket_near_toggle(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_digging(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 
@@ -20437,18 +15549,18 @@ static void call_dacc_bucket_near_toggle(const double *const *x, double *const *
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. */
 static void phi_jac_digging_fast(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_digging_fast(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_digging_fast(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'digging_fast' (zero in the joint rows). */
 static void nu_digging_fast(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_digging_fast(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. */
@@ -20456,7 +15568,7 @@ static void gamma_digging_fast(const double *q, const double *v, const double *u
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_digging_fast(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging_fast' at time t: u, then du/dt, then d2u/dt2. */
@@ -20473,7 +15585,7 @@ static void input_ranges_digging_fast(const double *span, double *input_ranges) 
 /* Phi_p = dPhi/dp (n_p columns) of case 'digging_fast': values at phi_p_rows, phi_p_cols. */
 static void phi_p_digging_fast(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_digging_fast(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -20487,7 +15599,7 @@ static void dvel_digging_fast(const double *q, const double *v, const double *u,
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_digging_fast(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_digging(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20512,7 +15624,7 @@ static void dacc_digging_fast(const double *q, const double *v, const double *a,
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_digging_fast(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_digging(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 
@@ -20565,18 +15677,18 @@ static void call_dacc_digging_fast(const double *const *x, double *const *y) {
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
 static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_digging_paced(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_digging_paced(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
 static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
@@ -20584,7 +15696,7 @@ static void gamma_digging_paced(const double *q, const double *v, const double *
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
@@ -20601,7 +15713,7 @@ static void input_ranges_digging_paced(const double *span, double *input_ranges)
 /* Phi_p = dPhi/dp (n_p columns) of case 'digging_paced': values at phi_p_rows, phi_p_cols. */
 static void phi_p_digging_paced(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_digging_paced(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -20615,7 +15727,7 @@ static void dvel_digging_paced(const double *q, const double *v, const double *u
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_digging_paced(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_digging(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20640,7 +15752,7 @@ static void dacc_digging_paced(const double *q, const double *v, const double *a
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_digging_paced(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_digging(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 
@@ -20693,18 +15805,18 @@ static void call_dacc_digging_paced(const double *const *x, double *const *y) {
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
-    excavator_quaternion_compute_drivers_phi_oscillation(q, u, p, phi + 80);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
     excavator_quaternion_compute_joints_jac_part0(q, p, jac);
     excavator_quaternion_compute_joints_jac_part1(q, p, jac);
     excavator_quaternion_compute_joints_jac_part2(q, p, jac);
     excavator_quaternion_compute_joints_jac_part3(q, p, jac);
-    excavator_quaternion_compute_drivers_jac_oscillation(q, u, p, jac + 403);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, p, jac + 403);
 }
 
 /* nu = -Phi_t of case 'oscillation' (zero in the joint rows). */
 static void nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_quaternion_compute_drivers_nu_oscillation(q, u, ud, p, nu + 80);
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. */
@@ -20712,7 +15824,7 @@ static void gamma_oscillation(const double *q, const double *v, const double *u,
     excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
     excavator_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
-    excavator_quaternion_compute_drivers_gamma_oscillation(q, v, u, ud, udd, p, gamma + 80);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'oscillation' at time t: u, then du/dt, then d2u/dt2. */
@@ -20729,7 +15841,7 @@ static void input_ranges_oscillation(const double *span, double *input_ranges) {
 /* Phi_p = dPhi/dp (n_p columns) of case 'oscillation': values at phi_p_rows, phi_p_cols. */
 static void phi_p_oscillation(const double *q, const double *u, const double *p, double *phi_p) {
     excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
-    excavator_quaternion_compute_drivers_phi_p_oscillation(q, u, p, phi_p + 33);
+    excavator_quaternion_compute_drivers_phi_p_digging(q, u, p, phi_p + 33);
 }
 #endif
 
@@ -20743,7 +15855,7 @@ static void dvel_oscillation(const double *q, const double *v, const double *u, 
     excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part5(q, v, p, dvel);
     excavator_quaternion_compute_joints_dvel_part6(q, v, p, dvel);
-    excavator_quaternion_compute_drivers_dvel_oscillation(q, v, u, ud, p, dvel + 396);
+    excavator_quaternion_compute_drivers_dvel_digging(q, v, u, ud, p, dvel + 396);
 }
 #endif
 
@@ -20768,7 +15880,7 @@ static void dacc_oscillation(const double *q, const double *v, const double *a, 
     excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part16(q, v, a, p, dacc);
     excavator_quaternion_compute_joints_dacc_part17(q, v, a, p, dacc);
-    excavator_quaternion_compute_drivers_dacc_oscillation(q, v, a, u, ud, udd, p, dacc + 759);
+    excavator_quaternion_compute_drivers_dacc_digging(q, v, a, u, ud, udd, p, dacc + 759);
 }
 #endif
 

@@ -160,10 +160,14 @@ def test_the_python_modules_place_for_the_c_digests_is_filled_once_or_refused():
 def test_compiled_templates_are_kept_in_the_cache_and_give_the_same_bytes(tmp_path, monkeypatch):
     """The backends' Jinja templates, compiled once into kinegen's cache (templates/), are loaded
     from there next time -- nothing compiled -- and render the same bytes; a cache that cannot be
-    written (a file where its folder belongs) costs a compilation, not the build."""
+    written (a file where its folder belongs) costs a compilation, not the build. (In one process:
+    where it may fork, the Python module renders in a forked process, whose compilations this one
+    would not see.)"""
     import jinja2
 
     from kinegen.codegen import templates
+
+    monkeypatch.setattr(writer, "may_fork", lambda: False)
 
     def fresh_generate() -> dict:
         templates.environment.cache_clear()  # a new process's environment

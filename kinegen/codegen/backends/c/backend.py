@@ -230,6 +230,7 @@ class _Model:
         self.functions: list[_Function] = []  # kernels and frames
         self.section_functions: list[_Function] = []
         self.sections: dict[str, list[str]] = {}
+        self.by_text: dict[tuple, list[_Function]] = {}  # a section's functions by their text (section)
         self.tables: list[str] = []  # the kernel tables (kernel_table)
         self.callers: dict[str, set[str]] = {}  # section function -> the kernels (by name) that call it
 
@@ -258,7 +259,10 @@ class _Model:
         return lines
 
     def section(self, name: str, case: str | None) -> list[str]:
-        """The function(s) of a section, made once; returns the names to call, in order (one per part)."""
+        """The function(s) of a section, made once; returns the names to call, in order (one per part).
+        A section whose functions would be another's word for word (the same drivers in several cases:
+        the excavator's seven digging-like cases) calls that one's, its doc naming both: the C compiles
+        each text once."""
         if name in self.sections:
             return self.sections[name]
         section = self.d.sections[name]
@@ -266,12 +270,22 @@ class _Model:
         params = [*(_parameter(s) for s in section.slots), "double *out"]
         parts = block.parts(config.PART_STATEMENTS)
         names = [f"compute_{name}"] if len(parts) == 1 else [f"compute_{name}_part{k}" for k in range(len(parts))]
+        made = []
         for function_name, part in zip(names, parts):
             statements = [f"out[{part.offset + i}] = {'0.0' if texts is None else texts[0]};" for i, texts in enumerate(part.outputs)]
             if not part.outputs:
                 statements.append("(void)out;")
             doc = section.doc if len(parts) == 1 else f"{section.doc} Rows {part.offset} to {part.offset + len(part) - 1}."
-            self.section_functions.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
+            made.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
+        text = tuple((tuple(f.params), tuple(f.prologue), tuple(f.statements)) for f in made)
+        if text in self.by_text:
+            shared = self.by_text[text]
+            for function in shared:
+                function.doc += f" Also {name}'s, word for word."
+            self.sections[name] = [f.name for f in shared]
+            return self.sections[name]
+        self.by_text[text] = made
+        self.section_functions += made
         self.sections[name] = names
         return names
 
