@@ -318,7 +318,7 @@ def test_a_forked_child_whose_result_nobody_asks_for_is_stopped(tmp_path, monkey
     with pytest.raises(ModelError, match="C failed on purpose"):
         build(MODELS / "four_bar.yaml", "quaternion", tmp_path, keep=False)
     gc.collect()
-    assert list(tmp_path.iterdir()) == [] and multiprocessing.active_children() == []
+    assert list(tmp_path.iterdir()) == [] and not [p for p in multiprocessing.active_children() if p.name == "kinegen-child"]
     child = Child(time.sleep, 60)
     process = child._process
     assert process.is_alive()
