@@ -330,12 +330,16 @@ class _Started:
         if _intact(cached):  # (compiled by another process while this one waited for the lock)
             self._finalizer = weakref.finalize(self, self._held.close)
             return
-        self._work = self._held.enter_context(_work_folder(store))
-        for file, text in sources.items():
-            (self._work / file).write_text(text)
-        self._made = self._work / f"{Path(name).stem}.o"
-        self._command = [compiler, *command, "-c", "-o", str(self._made), str(self._work / name)]
-        self._process = subprocess.Popen(self._command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            self._work = self._held.enter_context(_work_folder(store))
+            for file, text in sources.items():
+                (self._work / file).write_text(text)
+            self._made = self._work / f"{Path(name).stem}.o"
+            self._command = [compiler, *command, "-c", "-o", str(self._made), str(self._work / name)]
+            self._process = subprocess.Popen(self._command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        except BaseException:  # (no compiler process: the folder and the lock let go now)
+            self._held.close()
+            raise
         self._finalizer = weakref.finalize(self, _stopped, self._process, self._held)
         _STARTED[cached] = self  # (this process's own use of the object finishes it first: _objects)
 
