@@ -507,8 +507,8 @@ def _printed_sensitivities(derived: _Sensitivities, joints: list[Row], systems: 
     None --, the texts, their naming) sent back."""
     entries = _sensitivity_entries(derived, joints, systems)
     shapes = Shapes()
-    groups = [g for *_, g, _ in _sensitivity_groups(entries, joints, systems)]
-    texts, naming = shapes.printed_texts([(group, list(printers)) for group in {g.key: g for gs in groups for g in gs}.values()])
+    groups = [g for *_, gs, _ in _sensitivity_groups(entries, joints, systems) for g in gs]
+    texts, naming = shapes.printed_texts(shapes.unprinted([(printer, group) for group in groups for printer in printers]))
     joint, drivers, _ = entries
     columns = ({k: _columns(v) for k, v in joint.items()}, {n: {k: _columns(v) for k, v in d.items()} for n, d in drivers.items()}, {})
     return columns, texts, naming

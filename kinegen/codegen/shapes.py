@@ -232,15 +232,7 @@ class Shapes:
         """Eliminate and print ``jobs`` (printer, group) now, each group's statements once for all its
         printers; with ``fork``, every other group in a forked process (its texts come back through a
         pipe): the two cores' share of a build. What is printed already is not printed again."""
-        todo: dict[Hashable, tuple[Group, list[CodePrinter]]] = {}
-        for printer, group in jobs:
-            identity = self._identity(group)
-            if (_kind(printer), identity) in self._texts:
-                continue
-            _, printers = todo.setdefault(identity, (group, []))
-            if all(_kind(p) != _kind(printer) for p in printers):
-                printers.append(printer)
-        work = list(todo.values())
+        work = self.unprinted(jobs)
         if not fork or len(work) < 2:
             for group, printers in work:
                 self._print(group, printers)
@@ -251,6 +243,19 @@ class Shapes:
         for group, printers in work[0::2]:
             self._print(group, printers)
         self.adopt(*child.result())
+
+    def unprinted(self, jobs: Sequence[tuple[CodePrinter, Group]]) -> list[tuple[Group, list[CodePrinter]]]:
+        """``jobs`` (printer, group) not printed yet, by group (the first of those with one key) with
+        its printers (one of each kind), in the order the groups first come."""
+        todo: dict[Hashable, tuple[Group, list[CodePrinter]]] = {}
+        for printer, group in jobs:
+            identity = self._identity(group)
+            if (_kind(printer), identity) in self._texts:
+                continue
+            _, printers = todo.setdefault(identity, (group, []))
+            if all(_kind(p) != _kind(printer) for p in printers):
+                printers.append(printer)
+        return list(todo.values())
 
     def adopt(self, texts: dict, naming: dict) -> None:
         """Texts and namings another process printed (:meth:`printed_texts`), kept as this one's."""

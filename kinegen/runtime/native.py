@@ -174,21 +174,9 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivi
     model's C in its ``KINEGEN_PART`` parts (see backends.c.backend), and moved in atomically.
     Without ``sensitivities``, a model's parts that only its sensitivity kernels need are left out and
     its part 0 is compiled with ``-DKINEGEN_NO_SENSITIVITIES`` (the other parts' objects are shared)."""
-    identity = _compiler_identity(compiler)
-    store = cache_folder() / "objects"
-    store.mkdir(parents=True, exist_ok=True)
-    objects, missing = [], []
-    for name in names:
-        flags = SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
-        left_out = set() if sensitivities or name == "kinegen_solver.c" else set(sensitivity_parts(sources[name]))
-        for part in source_parts(sources[name]) or [None]:
-            if part in left_out:
-                continue
-            without = [f"-D{NO_SENSITIVITIES}"] if left_out and part == 0 else []
-            command = [*COMMON_FLAGS, *flags, *([] if part is None else [f"-DKINEGEN_PART={part}"]), *without]
-            objects.append(store / f"{_object_key(identity, command, name, sources)}.o")
-            if not _intact(objects[-1]):
-                missing.append((name, part, command, objects[-1]))
+    store, planned = _planned(compiler, sources, names, sensitivities)
+    objects = [cached for _, _, _, cached in planned]
+    missing = [p for p in planned if not _intact(p[3])]
     if not missing:
         return objects
     for _, _, _, cached in missing:  # this process's own compiler of it (start_solver_object) holds its lock: finished first
@@ -200,6 +188,25 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivi
         if missing:
             _compile(compiler, store, sources, missing)
     return objects
+
+
+def _planned(compiler: str, sources: dict[str, str], names: list[str], sensitivities: bool = True) -> tuple[Path, list[tuple[str, int | None, list[str], Path]]]:
+    """The cache's object folder, and the objects :func:`_objects` makes of ``names``: (file name, part
+    or None, the compiler's flags, the cached object's path, keyed by :func:`_object_key`)."""
+    identity = _compiler_identity(compiler)
+    store = cache_folder() / "objects"
+    store.mkdir(parents=True, exist_ok=True)
+    planned = []
+    for name in names:
+        flags = SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
+        left_out = set() if sensitivities or name == "kinegen_solver.c" else set(sensitivity_parts(sources[name]))
+        for part in source_parts(sources[name]) or [None]:
+            if part in left_out:
+                continue
+            without = [f"-D{NO_SENSITIVITIES}"] if left_out and part == 0 else []
+            command = [*COMMON_FLAGS, *flags, *([] if part is None else [f"-DKINEGEN_PART={part}"]), *without]
+            planned.append((name, part, command, store / f"{_object_key(identity, command, name, sources)}.o"))
+    return store, planned
 
 
 @contextmanager
@@ -226,13 +233,19 @@ def _compiling(store: Path, objects: list[Path]) -> Iterator[None]:
 def _compile(compiler: str, store: Path, sources: dict[str, str], missing: list[tuple[str, int | None, list[str], Path]]) -> None:
     """Compile the ``missing`` objects (name, part, flags, cached path) in parallel into the cache."""
     with _work_folder(store) as work:
-        for name, text in sources.items():
-            (work / name).write_text(text)
-        made = [work / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o" for name, part, _, _ in missing]
-        _run_all(compiler, [[compiler, *command, "-c", "-o", str(o), str(work / name)]
-                            for o, (name, _, command, _) in zip(made, missing)])  # fmt: skip
+        made, commands = _commands(compiler, work, sources, missing)
+        _run_all(compiler, commands)
         for o, (_, _, _, cached) in zip(made, missing):
             _publish(o, cached)
+
+
+def _commands(compiler: str, work: Path, sources: dict[str, str], missing: list[tuple[str, int | None, list[str], Path]]) -> tuple[list[Path], list[list[str]]]:
+    """``sources`` written into ``work``, and the objects ``missing`` (as :func:`_planned` gives them)
+    will be compiled to there, with the compiler commands that make them."""
+    for name, text in sources.items():
+        (work / name).write_text(text)
+    made = [work / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o" for name, part, _, _ in missing]
+    return made, [[compiler, *command, "-c", "-o", str(o), str(work / name)] for o, (name, _, command, _) in zip(made, missing)]
 
 
 def _object_key(identity: str, command: list[str], name: str, sources: dict[str, str]) -> str:
@@ -303,14 +316,10 @@ def start_solver_object() -> Callable[[], None]:
     try:
         compiler = c_compiler()
         sources = with_solver({})
-        name = "kinegen_solver.c"
-        command = [*COMMON_FLAGS, *SOLVER_FLAGS]
-        store = cache_folder() / "objects"
-        store.mkdir(parents=True, exist_ok=True)
-        cached = store / f"{_object_key(_compiler_identity(compiler), command, name, sources)}.o"
-        if _intact(cached):
+        store, (planned,) = _planned(compiler, sources, ["kinegen_solver.c"])  # (the object build_solver_object makes)
+        if _intact(planned[3]):
             return lambda: None
-        return _Started(compiler, store, sources, name, command, cached).finish
+        return _Started(compiler, store, sources, planned).finish
     except (KinegenError, OSError):
         return lambda: None
 
@@ -321,21 +330,18 @@ class _Started:
     into the cache (a refused -march=native compiled again without it, as :func:`_run_all` does) and lets
     the lock and the folder go. Stopped at this process's exit if never finished."""
 
-    def __init__(self, compiler: str, store: Path, sources: dict[str, str], name: str, command: list[str], cached: Path) -> None:
+    def __init__(self, compiler: str, store: Path, sources: dict[str, str], planned: tuple[str, int | None, list[str], Path]) -> None:
         self._lock = threading.Lock()
         self._held = ExitStack()
+        self._cached = cached = planned[3]
         self._held.enter_context(_compiling(store, [cached]))
-        self._cached = cached
         self._process: subprocess.Popen | None = None
         if _intact(cached):  # (compiled by another process while this one waited for the lock)
             self._finalizer = weakref.finalize(self, self._held.close)
             return
         try:
-            self._work = self._held.enter_context(_work_folder(store))
-            for file, text in sources.items():
-                (self._work / file).write_text(text)
-            self._made = self._work / f"{Path(name).stem}.o"
-            self._command = [compiler, *command, "-c", "-o", str(self._made), str(self._work / name)]
+            work = self._held.enter_context(_work_folder(store))
+            (self._made,), (self._command,) = _commands(compiler, work, sources, [planned])
             self._process = subprocess.Popen(self._command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         except BaseException:  # (no compiler process: the folder and the lock let go now)
             self._held.close()

@@ -46,9 +46,9 @@ def printers() -> tuple[CodePrinter, ...]:
 def jobs(description: ModuleDescription) -> list[tuple[CodePrinter, Group]]:
     """What the module prints, as (printer, group): every section in NumPy, the scalar ones also in ``math``
     (a section still None is still being derived: see kernels.describe's ``meanwhile``)."""
-    scalar = scalar_sections(description)
+    scalar, array = scalar_sections(description), printers()
     return [(printer, group) for name, section in description.sections.items() if section is not None for group in section.groups
-            for printer in (PRINTERS if name in scalar else printers())]  # fmt: skip
+            for printer in (PRINTERS if name in scalar else array)]  # fmt: skip
 
 
 @dataclass
