@@ -3011,7 +3011,7 @@ def _joints_phi(q, p):
 
 
 def _drivers_phi_digging(q, u, p):
-    """Phi of the driver rows of case 'digging'."""
+    """Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text)."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
@@ -3056,7 +3056,7 @@ def phi_digging(q, u, p):
 
 
 def _drivers_jac_digging(q, u, p):
-    """Phi_q values of the driver rows of case 'digging'."""
+    """Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
@@ -3646,7 +3646,7 @@ def _joints_phi_joints_jac_s(q, p):
 
 
 def _drivers_phi_digging_drivers_jac_digging_s(q, u, p):
-    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_phi_bucket_toggle and drivers_jac_bucket_toggle, drivers_phi_bucket_stroke and drivers_jac_bucket_stroke, drivers_phi_bucket_near_toggle and drivers_jac_bucket_near_toggle, drivers_phi_digging_fast and drivers_jac_digging_fast, drivers_phi_digging_paced and drivers_jac_digging_paced, drivers_phi_oscillation and drivers_jac_oscillation (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
@@ -3700,7 +3700,7 @@ def phi_jac_s_digging(q, u, p):
 
 
 def _drivers_nu_digging(q, u, ud, p):
-    """nu of the driver rows of case 'digging'."""
+    """nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -3719,7 +3719,7 @@ def nu_digging(q, u, ud, p):
 
 
 def _drivers_nu_digging_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -4650,7 +4650,7 @@ def _joints_gamma(q, v, p):
 
 
 def _drivers_gamma_digging(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'."""
+    """gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -5573,7 +5573,7 @@ def _joints_gamma_s(q, v, p):
 
 
 def _drivers_gamma_digging_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -5878,7 +5878,7 @@ def input_ranges_digging(span):
 
 
 def _drivers_phi_level_cut(q, u, p):
-    """Phi of the driver rows of case 'level_cut'."""
+    """Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text)."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
     u0, u1, u2, u3 = u
     bucket_ox = -2*bucket_dw*bucket_rx - 2*bucket_dy*bucket_rz + 2*bucket_dx*bucket_rw + 2*bucket_dz*bucket_ry
@@ -5902,7 +5902,7 @@ def phi_level_cut(q, u, p):
 
 
 def _drivers_jac_level_cut(q, u, p):
-    """Phi_q values of the driver rows of case 'level_cut'."""
+    """Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
     bucket_a00 = -1 + 2*bucket_rw**2 + 2*bucket_rx**2
@@ -5938,7 +5938,7 @@ def jac_level_cut(q, u, p):
 
 
 def _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p):
-    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_phi_trench_wall and drivers_jac_trench_wall (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
     u0, u1, u2, u3 = u
     bucket_ox = -2.0*bucket_dw*bucket_rx - 2.0*bucket_dy*bucket_rz + 2.0*bucket_dx*bucket_rw + 2.0*bucket_dz*bucket_ry
@@ -5966,7 +5966,7 @@ def phi_jac_s_level_cut(q, u, p):
 
 
 def _drivers_nu_level_cut(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'."""
+    """nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text)."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -5987,7 +5987,7 @@ def nu_level_cut(q, u, ud, p):
 
 
 def _drivers_nu_level_cut_s(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_nu_trench_wall (the same text)."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -6004,7 +6004,7 @@ def nu_s_level_cut(q, u, ud, p):
 
 
 def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'."""
+    """gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
     u0, _, _, u3 = u
@@ -6047,7 +6047,7 @@ def gamma_level_cut(q, v, u, ud, udd, p):
 
 
 def _drivers_gamma_level_cut_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_gamma_trench_wall (the same text)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
     u0, _, _, u3 = u
@@ -6164,212 +6164,43 @@ def input_ranges_level_cut(span):
     return out
 
 
-def _drivers_phi_trench_wall(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
-    u0, u1, u2, u3 = u
-    bucket_ox = -2*bucket_dw*bucket_rx - 2*bucket_dy*bucket_rz + 2*bucket_dx*bucket_rw + 2*bucket_dz*bucket_ry
-    bucket_oz = -2*bucket_dw*bucket_rz - 2*bucket_dx*bucket_ry + 2*bucket_dy*bucket_rx + 2*bucket_dz*bucket_rw
-    bucket_a00 = -1 + 2*bucket_rw**2 + 2*bucket_rx**2
-    bucket_a02 = 2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a20 = -2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a22 = -1 + 2*bucket_rw**2 + 2*bucket_rz**2
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (403/500)*bucket_a02 + (32/25)*bucket_a00 - u1 + bucket_ox
-    out[2] = (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_oz
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22
-    return out
-
-
 def phi_trench_wall(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
-
-
-def _drivers_jac_trench_wall(q, u, p):
-    """Phi_q values of the driver rows of case 'trench_wall'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
-    u0, _, _, u3 = u
-    bucket_a00 = -1 + 2*bucket_rw**2 + 2*bucket_rx**2
-    bucket_a02 = 2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a10 = 2*bucket_rw*bucket_rz + 2*bucket_rx*bucket_ry
-    bucket_a12 = -2*bucket_rw*bucket_rx + 2*bucket_ry*bucket_rz
-    bucket_a20 = -2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a22 = -1 + 2*bucket_rw**2 + 2*bucket_rz**2
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = sin(u3)
-    c4 = cos(u3)
-    out = _zeros(12, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = (403/500)*bucket_a22 + (32/25)*bucket_a20
-    out[4] = -32/25*bucket_a10 - 403/500*bucket_a12
-    out[5] = 1
-    out[6] = (403/500)*bucket_a12 + (32/25)*bucket_a10
-    out[7] = -32/25*bucket_a00 - 403/500*bucket_a02
-    out[8] = 1
-    out[9] = c3*bucket_a12
-    out[10] = -c4*bucket_a22 - c3*bucket_a02
-    out[11] = c4*bucket_a12
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
 def jac_trench_wall(q, u, p):
     """Output 'jac' (439 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
-
-
-def _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'.; Phi_q values of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
-    u0, u1, u2, u3 = u
-    bucket_ox = -2.0*bucket_dw*bucket_rx - 2.0*bucket_dy*bucket_rz + 2.0*bucket_dx*bucket_rw + 2.0*bucket_dz*bucket_ry
-    bucket_oz = -2.0*bucket_dw*bucket_rz - 2.0*bucket_dx*bucket_ry + 2.0*bucket_dy*bucket_rx + 2.0*bucket_dz*bucket_rw
-    bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx)
-    bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz
-    bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry
-    bucket_a12 = -2.0*bucket_rw*bucket_rx + 2.0*bucket_ry*bucket_rz
-    bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz
-    bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz)
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = math.sin(u3)
-    d4 = math.cos(u3)
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (403/500)*bucket_a02 + (32/25)*bucket_a00 - u1 + bucket_ox, (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_oz, -math.cos(u3)*bucket_a02 + math.sin(u3)*bucket_a22], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, (403/500)*bucket_a22 + (32/25)*bucket_a20, -32/25*bucket_a10 - 403/500*bucket_a12, 1.0, (403/500)*bucket_a12 + (32/25)*bucket_a10, -32/25*bucket_a00 - 403/500*bucket_a02, 1.0, d3*bucket_a12, -d4*bucket_a22 - d3*bucket_a02, d4*bucket_a12]
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
 def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_trench_wall(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a22 = -1 + 2*bucket_rw**2 + 2*bucket_rz**2
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3
-    return out
 
 
 def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_trench_wall(q, u, ud, p))
-
-
-def _drivers_nu_trench_wall_s(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz
-    bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz)
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, -(math.cos(u3)*bucket_a22 + math.sin(u3)*bucket_a02)*ud3]
+    return _join(80, _drivers_nu_level_cut(q, u, ud, p))
 
 
 def nu_s_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_trench_wall_s(q, u, ud, p)
+    s1_0 = _drivers_nu_level_cut_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    bucket_a00 = -1 + 2*bucket_rw**2 + 2*bucket_rx**2
-    bucket_a02 = 2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a10 = 2*bucket_rw*bucket_rz + 2*bucket_rx*bucket_ry
-    bucket_a12 = -2*bucket_rw*bucket_rx + 2*bucket_ry*bucket_rz
-    bucket_a20 = -2*bucket_rw*bucket_ry + 2*bucket_rx*bucket_rz
-    bucket_a22 = -1 + 2*bucket_rw**2 + 2*bucket_rz**2
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = sin(u3)
-    c12 = cos(u3)
-    c13 = c12*bucket_a02
-    c14 = c11*bucket_a22
-    c15 = bucket_a12*v_bucket_wx
-    c16 = bucket_a12*v_bucket_wz
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = (403/500)*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz)*v_bucket_wz + (32/25)*(-bucket_a20*v_bucket_wx + bucket_a00*v_bucket_wz)*v_bucket_wz - 32/25*(-bucket_a00*v_bucket_wy + bucket_a10*v_bucket_wx)*v_bucket_wy - 403/500*(-bucket_a02*v_bucket_wy + bucket_a12*v_bucket_wx)*v_bucket_wy + udd1
-    out[2] = (32/25)*(-bucket_a10*v_bucket_wz + bucket_a20*v_bucket_wy)*v_bucket_wy - 32/25*(-bucket_a20*v_bucket_wx + bucket_a00*v_bucket_wz)*v_bucket_wx - 403/500*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz)*v_bucket_wx + (403/500)*(-bucket_a12*v_bucket_wz + bucket_a22*v_bucket_wy)*v_bucket_wy + udd2
-    out[3] = c11*(-c16 + bucket_a22*v_bucket_wy)*v_bucket_wy + c12*(-bucket_a02*v_bucket_wy + c15)*v_bucket_wy - (c12*v_bucket_wz + c11*v_bucket_wx)*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz) - 2*ud3*(-c11*c16 + c12*c15 + (-c13 + c14)*v_bucket_wy) - (-c14 + c13)*ud3**2 - (c12*bucket_a22 + c11*bucket_a02)*udd3
-    return out
 
 
 def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx)
-    bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz
-    bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry
-    bucket_a12 = -2.0*bucket_rw*bucket_rx + 2.0*bucket_ry*bucket_rz
-    bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz
-    bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz)
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = math.sin(u3)
-    c12 = math.cos(u3)
-    c13 = c12*bucket_a02
-    c14 = c11*bucket_a22
-    c15 = bucket_a12*v_bucket_wx
-    c16 = bucket_a12*v_bucket_wz
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, (403/500)*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz)*v_bucket_wz + (32/25)*(-bucket_a20*v_bucket_wx + bucket_a00*v_bucket_wz)*v_bucket_wz - 32/25*(-bucket_a00*v_bucket_wy + bucket_a10*v_bucket_wx)*v_bucket_wy - 403/500*(-bucket_a02*v_bucket_wy + bucket_a12*v_bucket_wx)*v_bucket_wy + udd1, (32/25)*(-bucket_a10*v_bucket_wz + bucket_a20*v_bucket_wy)*v_bucket_wy - 32/25*(-bucket_a20*v_bucket_wx + bucket_a00*v_bucket_wz)*v_bucket_wx - 403/500*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz)*v_bucket_wx + (403/500)*(-bucket_a12*v_bucket_wz + bucket_a22*v_bucket_wy)*v_bucket_wy + udd2, c11*(-c16 + bucket_a22*v_bucket_wy)*v_bucket_wy + c12*(-bucket_a02*v_bucket_wy + c15)*v_bucket_wy - (c12*v_bucket_wz + c11*v_bucket_wx)*(-bucket_a22*v_bucket_wx + bucket_a02*v_bucket_wz) - 2.0*ud3*(-c11*c16 + c12*c15 + (-c13 + c14)*v_bucket_wy) - (-c14 + c13)*(ud3*ud3) - (c12*bucket_a22 + c11*bucket_a02)*udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
 def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_level_cut_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -6451,385 +6282,43 @@ def input_ranges_trench_wall(span):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_toggle'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[6] = -boom_cyl_l_barrel_a00
-    out[7] = -boom_cyl_l_barrel_a10
-    out[8] = -boom_cyl_l_barrel_a20
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[15] = -arm_cyl_barrel_a00
-    out[16] = -arm_cyl_barrel_a10
-    out[17] = -arm_cyl_barrel_a20
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[24] = -bucket_cyl_barrel_a00
-    out[25] = -bucket_cyl_barrel_a10
-    out[26] = -bucket_cyl_barrel_a20
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_toggle(q, u, p):
     """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'.; Phi_q values of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3
-    return out
 
 
 def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1, -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2, -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -6881,385 +6370,43 @@ def input_ranges_bucket_toggle(span):
     return out
 
 
-def _drivers_phi_bucket_stroke(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_stroke(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
-
-
-def _drivers_jac_bucket_stroke(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_stroke'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[6] = -boom_cyl_l_barrel_a00
-    out[7] = -boom_cyl_l_barrel_a10
-    out[8] = -boom_cyl_l_barrel_a20
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[15] = -arm_cyl_barrel_a00
-    out[16] = -arm_cyl_barrel_a10
-    out[17] = -arm_cyl_barrel_a20
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[24] = -bucket_cyl_barrel_a00
-    out[25] = -bucket_cyl_barrel_a10
-    out[26] = -bucket_cyl_barrel_a20
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_stroke(q, u, p):
     """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
-
-
-def _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'.; Phi_q values of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_stroke(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_stroke(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_stroke(q, u, ud, p))
-
-
-def _drivers_nu_bucket_stroke_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_stroke_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3
-    return out
 
 
 def gamma_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1, -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2, -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -7311,385 +6458,43 @@ def input_ranges_bucket_stroke(span):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_near_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_near_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[6] = -boom_cyl_l_barrel_a00
-    out[7] = -boom_cyl_l_barrel_a10
-    out[8] = -boom_cyl_l_barrel_a20
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[15] = -arm_cyl_barrel_a00
-    out[16] = -arm_cyl_barrel_a10
-    out[17] = -arm_cyl_barrel_a20
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[24] = -bucket_cyl_barrel_a00
-    out[25] = -bucket_cyl_barrel_a10
-    out[26] = -bucket_cyl_barrel_a20
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_near_toggle(q, u, p):
     """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'.; Phi_q values of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_near_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_near_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_near_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_near_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3
-    return out
 
 
 def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1, -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2, -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -7752,385 +6557,43 @@ def input_ranges_bucket_near_toggle(span):
     return out
 
 
-def _drivers_phi_digging_fast(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_fast(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_fast(q, u, p))
-
-
-def _drivers_jac_digging_fast(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_fast'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[6] = -boom_cyl_l_barrel_a00
-    out[7] = -boom_cyl_l_barrel_a10
-    out[8] = -boom_cyl_l_barrel_a20
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[15] = -arm_cyl_barrel_a00
-    out[16] = -arm_cyl_barrel_a10
-    out[17] = -arm_cyl_barrel_a20
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[24] = -bucket_cyl_barrel_a00
-    out[25] = -bucket_cyl_barrel_a10
-    out[26] = -bucket_cyl_barrel_a20
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_fast(q, u, p):
     """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_fast(q, u, p))
-
-
-def _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'.; Phi_q values of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_fast(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_fast(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_fast(q, u, ud, p))
-
-
-def _drivers_nu_digging_fast_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_fast_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_fast(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3
-    return out
 
 
 def gamma_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_fast(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1, -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2, -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -8357,385 +6820,43 @@ def input_ranges_digging_fast(span):
     return out
 
 
-def _drivers_phi_digging_paced(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_paced(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
-
-
-def _drivers_jac_digging_paced(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_paced'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[6] = -boom_cyl_l_barrel_a00
-    out[7] = -boom_cyl_l_barrel_a10
-    out[8] = -boom_cyl_l_barrel_a20
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[15] = -arm_cyl_barrel_a00
-    out[16] = -arm_cyl_barrel_a10
-    out[17] = -arm_cyl_barrel_a20
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[24] = -bucket_cyl_barrel_a00
-    out[25] = -bucket_cyl_barrel_a10
-    out[26] = -bucket_cyl_barrel_a20
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_paced(q, u, p):
     """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
-
-
-def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_paced(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_paced(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
-
-
-def _drivers_nu_digging_paced_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3
-    return out
 
 
 def gamma_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1, -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2, -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -8962,385 +7083,43 @@ def input_ranges_digging_paced(span):
     return out
 
 
-def _drivers_phi_oscillation(q, u, p):
-    """Phi of the driver rows of case 'oscillation'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_rw - 2*cos(c0)*upper_rz
-    out[1] = (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_oscillation(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_phi(q, p), _drivers_phi_oscillation(q, u, p))
-
-
-def _drivers_jac_oscillation(q, u, p):
-    """Phi_q values of the driver rows of case 'oscillation'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_ry - c1*upper_rx
-    out[1] = -c1*upper_ry + c2*upper_rx
-    out[2] = -c1*upper_rz - c2*upper_rw
-    out[3] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[4] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[5] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[6] = -boom_cyl_l_barrel_a00
-    out[7] = -boom_cyl_l_barrel_a10
-    out[8] = -boom_cyl_l_barrel_a20
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[13] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[14] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[15] = -arm_cyl_barrel_a00
-    out[16] = -arm_cyl_barrel_a10
-    out[17] = -arm_cyl_barrel_a20
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[22] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[23] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[24] = -bucket_cyl_barrel_a00
-    out[25] = -bucket_cyl_barrel_a10
-    out[26] = -bucket_cyl_barrel_a20
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_oscillation(q, u, p):
     """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_jac(q, p), _drivers_jac_oscillation(q, u, p))
-
-
-def _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p):
-    """Phi of the driver rows of case 'oscillation'.; Phi_q values of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
-    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
-    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
-    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
-    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
-    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
-    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    return [2.0*math.sin(c0)*upper_rw - 2.0*math.cos(c0)*upper_rz, (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*bucket_cyl_barrel_a00 - u3], [-d2*upper_ry - d1*upper_rx, -d1*upper_ry + d2*upper_rx, -d1*upper_rz - d2*upper_rw, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_oscillation(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_oscillation(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'."""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_rz + cos(c0)*upper_rw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_oscillation(q, u, ud, p))
-
-
-def _drivers_nu_oscillation_s(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_rz + math.cos(c0)*upper_rw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_oscillation_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_oscillation(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1
-    out[2] = -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2
-    out[3] = -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3
-    return out
 
 
 def gamma_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_oscillation(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_oscillation_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
-    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
-    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
-    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
-    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
-    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
-    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
-    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
-    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
-    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
-    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
-    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
-    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
-    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*c2
-    c4 = (1/2)*upper_rx
-    c5 = c3*upper_rw
-    c6 = (1/2)*c1
-    c7 = c6*upper_rz
-    c8 = (1/2)*upper_ry
-    c9 = (1/2)*upper_rz
-    c10 = (1/2)*upper_rw
-    c11 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
-    c12 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz
-    c13 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy
-    c14 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
-    c15 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz
-    c17 = -c15 + c16
-    c18 = -c12 + c11
-    c19 = -c13 + c14
-    c20 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
-    c21 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz
-    c22 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy
-    c23 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
-    c24 = arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz
-    c26 = -c24 + c25
-    c27 = -c21 + c20
-    c28 = -c22 + c23
-    c29 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
-    c30 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz
-    c31 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy
-    c32 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
-    c33 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz
-    c35 = -c33 + c34
-    c36 = -c30 + c29
-    c37 = -c31 + c32
-    return [c2*(-c4*v_upper_wy + c8*v_upper_wx + c10*v_upper_wz)*v_upper_wz - (-c2*v_upper_wy - c1*v_upper_wx)*(-c9*v_upper_wx + c4*v_upper_wz + c10*v_upper_wy) - (c1*v_upper_wy - c2*v_upper_wx)*(-c8*v_upper_wz + c9*v_upper_wy + c10*v_upper_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_upper_wy - c9*v_upper_wz - c4*v_upper_wx)*v_upper_wz - 2.0*ud0*((-c6*upper_ry - c3*upper_rx)*v_upper_wy + (-c7 + c5)*v_upper_wz + (-c1*c4 + c3*upper_ry)*v_upper_wx) - (c2*upper_rz + c1*upper_rw)*udd0, -(-v_boom_cyl_l_barrel_vx + (-boom_cyl_l_barrel_oy + boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wz + (boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wy + v_boom_cyl_l_rod_vx)*c18 - c19*(-v_boom_cyl_l_barrel_vz + (boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy)*v_boom_cyl_l_barrel_wx + v_boom_cyl_l_rod_vz + (-boom_cyl_l_barrel_ox + boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wy) - c19*v_boom_cyl_l_rod_vz - (-c16 + c15)*v_boom_cyl_l_barrel_vy - (-c14 + c13)*v_boom_cyl_l_barrel_vz - c17*(-v_boom_cyl_l_barrel_vy + (boom_cyl_l_barrel_ox - boom_cyl_l_rod_ox)*v_boom_cyl_l_barrel_wz + v_boom_cyl_l_rod_vy + (-boom_cyl_l_barrel_oz + boom_cyl_l_rod_oz)*v_boom_cyl_l_barrel_wx) - c17*v_boom_cyl_l_rod_vy - (c12 - c11)*v_boom_cyl_l_barrel_vx - c18*v_boom_cyl_l_rod_vx + udd1, -(-v_arm_cyl_barrel_vx + (-arm_cyl_barrel_oy + arm_cyl_rod_oy)*v_arm_cyl_barrel_wz + (arm_cyl_barrel_oz - arm_cyl_rod_oz)*v_arm_cyl_barrel_wy + v_arm_cyl_rod_vx)*c27 - c28*(-v_arm_cyl_barrel_vz + (arm_cyl_barrel_oy - arm_cyl_rod_oy)*v_arm_cyl_barrel_wx + v_arm_cyl_rod_vz + (-arm_cyl_barrel_ox + arm_cyl_rod_ox)*v_arm_cyl_barrel_wy) - c28*v_arm_cyl_rod_vz - (-c25 + c24)*v_arm_cyl_barrel_vy - (-c23 + c22)*v_arm_cyl_barrel_vz - c26*(-v_arm_cyl_barrel_vy + (arm_cyl_barrel_ox - arm_cyl_rod_ox)*v_arm_cyl_barrel_wz + v_arm_cyl_rod_vy + (-arm_cyl_barrel_oz + arm_cyl_rod_oz)*v_arm_cyl_barrel_wx) - c26*v_arm_cyl_rod_vy - (c21 - c20)*v_arm_cyl_barrel_vx - c27*v_arm_cyl_rod_vx + udd2, -(-v_bucket_cyl_barrel_vx + (-bucket_cyl_barrel_oy + bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wz + (bucket_cyl_barrel_oz - bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wy + v_bucket_cyl_rod_vx)*c36 - c37*(-v_bucket_cyl_barrel_vz + (bucket_cyl_barrel_oy - bucket_cyl_rod_oy)*v_bucket_cyl_barrel_wx + v_bucket_cyl_rod_vz + (-bucket_cyl_barrel_ox + bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wy) - c37*v_bucket_cyl_rod_vz - (-c34 + c33)*v_bucket_cyl_barrel_vy - (-c32 + c31)*v_bucket_cyl_barrel_vz - c35*(-v_bucket_cyl_barrel_vy + (bucket_cyl_barrel_ox - bucket_cyl_rod_ox)*v_bucket_cyl_barrel_wz + v_bucket_cyl_rod_vy + (-bucket_cyl_barrel_oz + bucket_cyl_rod_oz)*v_bucket_cyl_barrel_wx) - c35*v_bucket_cyl_rod_vy - (c30 - c29)*v_bucket_cyl_barrel_vx - c36*v_bucket_cyl_rod_vx + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_oscillation_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 

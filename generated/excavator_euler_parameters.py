@@ -3402,7 +3402,7 @@ def _joints_phi(q, p):
 
 
 def _drivers_phi_digging(q, u, p):
-    """Phi of the driver rows of case 'digging'."""
+    """Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
@@ -3429,7 +3429,7 @@ def phi_digging(q, u, p):
 
 
 def _drivers_jac_digging(q, u, p):
-    """Phi_q values of the driver rows of case 'digging'."""
+    """Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text)."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
@@ -4048,7 +4048,7 @@ def _joints_phi_joints_jac_s(q, p):
 
 
 def _drivers_phi_digging_drivers_jac_digging_s(q, u, p):
-    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_phi_bucket_toggle and drivers_jac_bucket_toggle, drivers_phi_bucket_stroke and drivers_jac_bucket_stroke, drivers_phi_bucket_near_toggle and drivers_jac_bucket_near_toggle, drivers_phi_digging_fast and drivers_jac_digging_fast, drivers_phi_digging_paced and drivers_jac_digging_paced, drivers_phi_oscillation and drivers_jac_oscillation (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
@@ -4082,7 +4082,7 @@ def phi_jac_s_digging(q, u, p):
 
 
 def _drivers_nu_digging(q, u, ud, p):
-    """nu of the driver rows of case 'digging'."""
+    """nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -4101,7 +4101,7 @@ def nu_digging(q, u, ud, p):
 
 
 def _drivers_nu_digging_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -5082,7 +5082,7 @@ def _joints_gamma(q, v, p):
 
 
 def _drivers_gamma_digging(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'."""
+    """gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -6048,7 +6048,7 @@ def _joints_gamma_s(q, v, p):
 
 
 def _drivers_gamma_digging_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -6360,7 +6360,7 @@ def input_ranges_digging(span):
 
 
 def _drivers_phi_level_cut(q, u, p):
-    """Phi of the driver rows of case 'level_cut'."""
+    """Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, u1, u2, u3 = u
     bucket_a00 = -1 + 2*bucket_e0**2 + 2*bucket_e1**2
@@ -6382,7 +6382,7 @@ def phi_level_cut(q, u, p):
 
 
 def _drivers_jac_level_cut(q, u, p):
-    """Phi_q values of the driver rows of case 'level_cut'."""
+    """Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text)."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
     c0 = (1/2)*u0
@@ -6414,7 +6414,7 @@ def jac_level_cut(q, u, p):
 
 
 def _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p):
-    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_phi_trench_wall and drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, u1, u2, u3 = u
     bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1)
@@ -6436,7 +6436,7 @@ def phi_jac_s_level_cut(q, u, p):
 
 
 def _drivers_nu_level_cut(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'."""
+    """nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -6457,7 +6457,7 @@ def nu_level_cut(q, u, ud, p):
 
 
 def _drivers_nu_level_cut_s(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -6474,7 +6474,7 @@ def nu_s_level_cut(q, u, ud, p):
 
 
 def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'."""
+    """gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
     u0, _, _, u3 = u
@@ -6511,7 +6511,7 @@ def gamma_level_cut(q, v, u, ud, udd, p):
 
 
 def _drivers_gamma_level_cut_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
     u0, _, _, u3 = u
@@ -6622,188 +6622,43 @@ def input_ranges_level_cut(span):
     return out
 
 
-def _drivers_phi_trench_wall(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    u0, u1, u2, u3 = u
-    bucket_a00 = -1 + 2*bucket_e0**2 + 2*bucket_e1**2
-    bucket_a02 = 2*bucket_e0*bucket_e2 + 2*bucket_e1*bucket_e3
-    bucket_a20 = -2*bucket_e0*bucket_e2 + 2*bucket_e1*bucket_e3
-    bucket_a22 = -1 + 2*bucket_e0**2 + 2*bucket_e3**2
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x
-    out[2] = (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22
-    return out
-
-
 def phi_trench_wall(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
-
-
-def _drivers_jac_trench_wall(q, u, p):
-    """Phi_q values of the driver rows of case 'trench_wall'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    u0, _, _, u3 = u
-    c0 = (1/2)*u0
-    c1 = 2*cos(u3)
-    c2 = 4*sin(u3)
-    out = _zeros(16, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = 1
-    out[3] = (403/250)*bucket_e2 + (128/25)*bucket_e0
-    out[4] = (403/250)*bucket_e3 + (128/25)*bucket_e1
-    out[5] = (403/250)*bucket_e0
-    out[6] = (403/250)*bucket_e1
-    out[7] = 1
-    out[8] = (403/125)*bucket_e0 - 64/25*bucket_e2
-    out[9] = (64/25)*bucket_e3
-    out[10] = -64/25*bucket_e0
-    out[11] = (403/125)*bucket_e3 + (64/25)*bucket_e1
-    out[12] = c2*bucket_e0 - c1*bucket_e2
-    out[13] = -c1*bucket_e3
-    out[14] = -c1*bucket_e0
-    out[15] = c2*bucket_e3 - c1*bucket_e1
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
 def jac_trench_wall(q, u, p):
     """Output 'jac' (627 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
-
-
-def _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'.; Phi_q values of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    u0, u1, u2, u3 = u
-    bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1)
-    bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3
-    bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3
-    bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3)
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*math.cos(u3)
-    d2 = 4.0*math.sin(u3)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x, (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z, -math.cos(u3)*bucket_a02 + math.sin(u3)*bucket_a22], [2.0*math.sin(d0), -2.0*math.cos(d0), 1.0, (403/250)*bucket_e2 + (128/25)*bucket_e0, (403/250)*bucket_e3 + (128/25)*bucket_e1, (403/250)*bucket_e0, (403/250)*bucket_e1, 1.0, (403/125)*bucket_e0 - 64/25*bucket_e2, (64/25)*bucket_e3, -64/25*bucket_e0, (403/125)*bucket_e3 + (64/25)*bucket_e1, d2*bucket_e0 - d1*bucket_e2, -d1*bucket_e3, -d1*bucket_e0, d2*bucket_e3 - d1*bucket_e1]
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
 def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_trench_wall(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2*bucket_e0*bucket_e2 + 2*bucket_e1*bucket_e3
-    bucket_a22 = -1 + 2*bucket_e0**2 + 2*bucket_e3**2
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3
-    return out
 
 
 def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_trench_wall(q, u, ud, p))
-
-
-def _drivers_nu_trench_wall_s(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3
-    bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3)
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, -(math.cos(u3)*bucket_a22 + math.sin(u3)*bucket_a02)*ud3]
+    return _join(94, _drivers_nu_level_cut(q, u, ud, p))
 
 
 def nu_s_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_trench_wall_s(q, u, ud, p)
+    s1_0 = _drivers_nu_level_cut_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    bucket_a02 = 2*bucket_e0*bucket_e2 + 2*bucket_e1*bucket_e3
-    bucket_a22 = -1 + 2*bucket_e0**2 + 2*bucket_e3**2
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (403/250)*v_bucket_e2
-    c4 = (403/250)*v_bucket_e3
-    c5 = (64/25)*v_bucket_e2
-    c6 = (64/25)*v_bucket_e1
-    c7 = sin(u3)
-    c8 = cos(u3)
-    c9 = 2*c8
-    c10 = c9*v_bucket_e2
-    c11 = 4*c7
-    c12 = c9*v_bucket_e1
-    c13 = 2*c7
-    c14 = 4*c8
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -c4*v_bucket_e1 - c3*v_bucket_e0 - (c4 + (128/25)*v_bucket_e1)*v_bucket_e1 - (c3 + (128/25)*v_bucket_e0)*v_bucket_e0 + udd1
-    out[2] = -c6*v_bucket_e3 + c5*v_bucket_e0 - (c6 + (403/125)*v_bucket_e3)*v_bucket_e3 - (-c5 + (403/125)*v_bucket_e0)*v_bucket_e0 + udd2
-    out[3] = c12*v_bucket_e3 - (-c7*bucket_a22 + c8*bucket_a02)*ud3**2 - (-c12 + c11*v_bucket_e3)*v_bucket_e3 - (-c10 + c11*v_bucket_e0)*v_bucket_e0 + c10*v_bucket_e0 - 2*(c13*bucket_e0*v_bucket_e2 + (c14*bucket_e3 + c13*bucket_e1)*v_bucket_e3 + c13*bucket_e3*v_bucket_e1 + (c14*bucket_e0 + c13*bucket_e2)*v_bucket_e0)*ud3 - (c8*bucket_a22 + c7*bucket_a02)*udd3
-    return out
 
 
 def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3
-    bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3)
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (403/250)*v_bucket_e2
-    c4 = (403/250)*v_bucket_e3
-    c5 = (64/25)*v_bucket_e2
-    c6 = (64/25)*v_bucket_e1
-    c7 = math.sin(u3)
-    c8 = math.cos(u3)
-    c9 = 2.0*c8
-    c10 = c9*v_bucket_e2
-    c11 = 4.0*c7
-    c12 = c9*v_bucket_e1
-    c13 = 2.0*c7
-    c14 = 4.0*c8
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -c4*v_bucket_e1 - c3*v_bucket_e0 - (c4 + (128/25)*v_bucket_e1)*v_bucket_e1 - (c3 + (128/25)*v_bucket_e0)*v_bucket_e0 + udd1, -c6*v_bucket_e3 + c5*v_bucket_e0 - (c6 + (403/125)*v_bucket_e3)*v_bucket_e3 - (-c5 + (403/125)*v_bucket_e0)*v_bucket_e0 + udd2, c12*v_bucket_e3 - (-c7*bucket_a22 + c8*bucket_a02)*(ud3*ud3) - (-c12 + c11*v_bucket_e3)*v_bucket_e3 - (-c10 + c11*v_bucket_e0)*v_bucket_e0 + c10*v_bucket_e0 - 2.0*(c13*bucket_e0*v_bucket_e2 + (c14*bucket_e3 + c13*bucket_e1)*v_bucket_e3 + c13*bucket_e3*v_bucket_e1 + (c14*bucket_e0 + c13*bucket_e2)*v_bucket_e0)*ud3 - (c8*bucket_a22 + c7*bucket_a02)*udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
 def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_level_cut_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -6885,343 +6740,43 @@ def input_ranges_trench_wall(span):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_toggle(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_toggle'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    c1 = 2*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    c2 = 2*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    c3 = 4*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    c4 = 2*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    c5 = 2*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    c6 = 4*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    c7 = 2*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    c8 = 2*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    c9 = 4*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    out = _zeros(32, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = -boom_cyl_l_barrel_a00
-    out[3] = -boom_cyl_l_barrel_a10
-    out[4] = -boom_cyl_l_barrel_a20
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0
-    out[19] = arm_cyl_barrel_a00
-    out[20] = arm_cyl_barrel_a10
-    out[21] = arm_cyl_barrel_a20
-    out[22] = -bucket_cyl_barrel_a00
-    out[23] = -bucket_cyl_barrel_a10
-    out[24] = -bucket_cyl_barrel_a20
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0
-    out[29] = bucket_cyl_barrel_a00
-    out[30] = bucket_cyl_barrel_a10
-    out[31] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_toggle(q, u, p):
     """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'.; Phi_q values of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    d2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    d3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    d4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    d5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    d6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    d7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    d8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    d9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_e0 + d2*boom_cyl_l_barrel_e3 - d1*boom_cyl_l_barrel_e2, d3*boom_cyl_l_barrel_e1 + d1*boom_cyl_l_barrel_e3 + d2*boom_cyl_l_barrel_e2, d2*boom_cyl_l_barrel_e1 - d1*boom_cyl_l_barrel_e0, d1*boom_cyl_l_barrel_e1 + d2*boom_cyl_l_barrel_e0, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_e0 + d5*arm_cyl_barrel_e3 - d4*arm_cyl_barrel_e2, d6*arm_cyl_barrel_e1 + d4*arm_cyl_barrel_e3 + d5*arm_cyl_barrel_e2, d5*arm_cyl_barrel_e1 - d4*arm_cyl_barrel_e0, d4*arm_cyl_barrel_e1 + d5*arm_cyl_barrel_e0, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_e0 + d8*bucket_cyl_barrel_e3 - d7*bucket_cyl_barrel_e2, d9*bucket_cyl_barrel_e1 + d7*bucket_cyl_barrel_e3 + d8*bucket_cyl_barrel_e2, d8*bucket_cyl_barrel_e1 - d7*bucket_cyl_barrel_e0, d7*bucket_cyl_barrel_e1 + d8*bucket_cyl_barrel_e0, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_bucket_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, ud3]
+    return _join(94, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = 2*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2*boom_cyl_l_rod_z
-    c12 = 2*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
-    c15 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
-    c16 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2*arm_cyl_rod_z
-    c35 = 2*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
-    c38 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
-    c39 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2*bucket_cyl_rod_z
-    c58 = 2*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
-    c61 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
-    c62 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z
-    return out
 
 
 def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = 2.0*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2.0*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2.0*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2.0*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2.0*boom_cyl_l_rod_z
-    c12 = 2.0*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
-    c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y
-    c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2.0*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2.0*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2.0*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2.0*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2.0*arm_cyl_rod_z
-    c35 = 2.0*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
-    c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y
-    c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2.0*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2.0*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2.0*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2.0*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2.0*bucket_cyl_rod_z
-    c58 = 2.0*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
-    c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y
-    c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z, -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z, -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -7273,343 +6828,43 @@ def input_ranges_bucket_toggle(span):
     return out
 
 
-def _drivers_phi_bucket_stroke(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_stroke(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
-
-
-def _drivers_jac_bucket_stroke(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_stroke'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    c1 = 2*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    c2 = 2*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    c3 = 4*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    c4 = 2*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    c5 = 2*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    c6 = 4*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    c7 = 2*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    c8 = 2*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    c9 = 4*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    out = _zeros(32, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = -boom_cyl_l_barrel_a00
-    out[3] = -boom_cyl_l_barrel_a10
-    out[4] = -boom_cyl_l_barrel_a20
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0
-    out[19] = arm_cyl_barrel_a00
-    out[20] = arm_cyl_barrel_a10
-    out[21] = arm_cyl_barrel_a20
-    out[22] = -bucket_cyl_barrel_a00
-    out[23] = -bucket_cyl_barrel_a10
-    out[24] = -bucket_cyl_barrel_a20
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0
-    out[29] = bucket_cyl_barrel_a00
-    out[30] = bucket_cyl_barrel_a10
-    out[31] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_stroke(q, u, p):
     """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
-
-
-def _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'.; Phi_q values of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    d2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    d3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    d4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    d5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    d6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    d7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    d8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    d9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_e0 + d2*boom_cyl_l_barrel_e3 - d1*boom_cyl_l_barrel_e2, d3*boom_cyl_l_barrel_e1 + d1*boom_cyl_l_barrel_e3 + d2*boom_cyl_l_barrel_e2, d2*boom_cyl_l_barrel_e1 - d1*boom_cyl_l_barrel_e0, d1*boom_cyl_l_barrel_e1 + d2*boom_cyl_l_barrel_e0, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_e0 + d5*arm_cyl_barrel_e3 - d4*arm_cyl_barrel_e2, d6*arm_cyl_barrel_e1 + d4*arm_cyl_barrel_e3 + d5*arm_cyl_barrel_e2, d5*arm_cyl_barrel_e1 - d4*arm_cyl_barrel_e0, d4*arm_cyl_barrel_e1 + d5*arm_cyl_barrel_e0, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_e0 + d8*bucket_cyl_barrel_e3 - d7*bucket_cyl_barrel_e2, d9*bucket_cyl_barrel_e1 + d7*bucket_cyl_barrel_e3 + d8*bucket_cyl_barrel_e2, d8*bucket_cyl_barrel_e1 - d7*bucket_cyl_barrel_e0, d7*bucket_cyl_barrel_e1 + d8*bucket_cyl_barrel_e0, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_stroke(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_stroke(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_bucket_stroke(q, u, ud, p))
-
-
-def _drivers_nu_bucket_stroke_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, ud3]
+    return _join(94, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_stroke_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = 2*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2*boom_cyl_l_rod_z
-    c12 = 2*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
-    c15 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
-    c16 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2*arm_cyl_rod_z
-    c35 = 2*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
-    c38 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
-    c39 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2*bucket_cyl_rod_z
-    c58 = 2*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
-    c61 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
-    c62 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z
-    return out
 
 
 def gamma_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = 2.0*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2.0*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2.0*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2.0*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2.0*boom_cyl_l_rod_z
-    c12 = 2.0*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
-    c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y
-    c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2.0*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2.0*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2.0*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2.0*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2.0*arm_cyl_rod_z
-    c35 = 2.0*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
-    c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y
-    c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2.0*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2.0*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2.0*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2.0*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2.0*bucket_cyl_rod_z
-    c58 = 2.0*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
-    c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y
-    c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z, -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z, -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -7661,343 +6916,43 @@ def input_ranges_bucket_stroke(span):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_near_toggle(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_near_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    c1 = 2*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    c2 = 2*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    c3 = 4*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    c4 = 2*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    c5 = 2*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    c6 = 4*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    c7 = 2*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    c8 = 2*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    c9 = 4*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    out = _zeros(32, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = -boom_cyl_l_barrel_a00
-    out[3] = -boom_cyl_l_barrel_a10
-    out[4] = -boom_cyl_l_barrel_a20
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0
-    out[19] = arm_cyl_barrel_a00
-    out[20] = arm_cyl_barrel_a10
-    out[21] = arm_cyl_barrel_a20
-    out[22] = -bucket_cyl_barrel_a00
-    out[23] = -bucket_cyl_barrel_a10
-    out[24] = -bucket_cyl_barrel_a20
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0
-    out[29] = bucket_cyl_barrel_a00
-    out[30] = bucket_cyl_barrel_a10
-    out[31] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_near_toggle(q, u, p):
     """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'.; Phi_q values of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    d2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    d3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    d4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    d5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    d6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    d7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    d8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    d9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_e0 + d2*boom_cyl_l_barrel_e3 - d1*boom_cyl_l_barrel_e2, d3*boom_cyl_l_barrel_e1 + d1*boom_cyl_l_barrel_e3 + d2*boom_cyl_l_barrel_e2, d2*boom_cyl_l_barrel_e1 - d1*boom_cyl_l_barrel_e0, d1*boom_cyl_l_barrel_e1 + d2*boom_cyl_l_barrel_e0, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_e0 + d5*arm_cyl_barrel_e3 - d4*arm_cyl_barrel_e2, d6*arm_cyl_barrel_e1 + d4*arm_cyl_barrel_e3 + d5*arm_cyl_barrel_e2, d5*arm_cyl_barrel_e1 - d4*arm_cyl_barrel_e0, d4*arm_cyl_barrel_e1 + d5*arm_cyl_barrel_e0, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_e0 + d8*bucket_cyl_barrel_e3 - d7*bucket_cyl_barrel_e2, d9*bucket_cyl_barrel_e1 + d7*bucket_cyl_barrel_e3 + d8*bucket_cyl_barrel_e2, d8*bucket_cyl_barrel_e1 - d7*bucket_cyl_barrel_e0, d7*bucket_cyl_barrel_e1 + d8*bucket_cyl_barrel_e0, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_near_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_bucket_near_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_near_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, ud3]
+    return _join(94, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_near_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = 2*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2*boom_cyl_l_rod_z
-    c12 = 2*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
-    c15 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
-    c16 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2*arm_cyl_rod_z
-    c35 = 2*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
-    c38 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
-    c39 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2*bucket_cyl_rod_z
-    c58 = 2*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
-    c61 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
-    c62 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z
-    return out
 
 
 def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = 2.0*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2.0*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2.0*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2.0*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2.0*boom_cyl_l_rod_z
-    c12 = 2.0*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
-    c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y
-    c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2.0*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2.0*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2.0*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2.0*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2.0*arm_cyl_rod_z
-    c35 = 2.0*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
-    c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y
-    c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2.0*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2.0*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2.0*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2.0*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2.0*bucket_cyl_rod_z
-    c58 = 2.0*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
-    c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y
-    c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z, -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z, -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -8060,343 +7015,43 @@ def input_ranges_bucket_near_toggle(span):
     return out
 
 
-def _drivers_phi_digging_fast(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_fast(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_fast(q, u, p))
-
-
-def _drivers_jac_digging_fast(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_fast'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    c1 = 2*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    c2 = 2*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    c3 = 4*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    c4 = 2*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    c5 = 2*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    c6 = 4*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    c7 = 2*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    c8 = 2*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    c9 = 4*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    out = _zeros(32, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = -boom_cyl_l_barrel_a00
-    out[3] = -boom_cyl_l_barrel_a10
-    out[4] = -boom_cyl_l_barrel_a20
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0
-    out[19] = arm_cyl_barrel_a00
-    out[20] = arm_cyl_barrel_a10
-    out[21] = arm_cyl_barrel_a20
-    out[22] = -bucket_cyl_barrel_a00
-    out[23] = -bucket_cyl_barrel_a10
-    out[24] = -bucket_cyl_barrel_a20
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0
-    out[29] = bucket_cyl_barrel_a00
-    out[30] = bucket_cyl_barrel_a10
-    out[31] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_fast(q, u, p):
     """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_fast(q, u, p))
-
-
-def _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'.; Phi_q values of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    d2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    d3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    d4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    d5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    d6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    d7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    d8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    d9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_e0 + d2*boom_cyl_l_barrel_e3 - d1*boom_cyl_l_barrel_e2, d3*boom_cyl_l_barrel_e1 + d1*boom_cyl_l_barrel_e3 + d2*boom_cyl_l_barrel_e2, d2*boom_cyl_l_barrel_e1 - d1*boom_cyl_l_barrel_e0, d1*boom_cyl_l_barrel_e1 + d2*boom_cyl_l_barrel_e0, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_e0 + d5*arm_cyl_barrel_e3 - d4*arm_cyl_barrel_e2, d6*arm_cyl_barrel_e1 + d4*arm_cyl_barrel_e3 + d5*arm_cyl_barrel_e2, d5*arm_cyl_barrel_e1 - d4*arm_cyl_barrel_e0, d4*arm_cyl_barrel_e1 + d5*arm_cyl_barrel_e0, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_e0 + d8*bucket_cyl_barrel_e3 - d7*bucket_cyl_barrel_e2, d9*bucket_cyl_barrel_e1 + d7*bucket_cyl_barrel_e3 + d8*bucket_cyl_barrel_e2, d8*bucket_cyl_barrel_e1 - d7*bucket_cyl_barrel_e0, d7*bucket_cyl_barrel_e1 + d8*bucket_cyl_barrel_e0, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_fast(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_fast(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_digging_fast(q, u, ud, p))
-
-
-def _drivers_nu_digging_fast_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, ud3]
+    return _join(94, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_fast_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_digging_fast(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = 2*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2*boom_cyl_l_rod_z
-    c12 = 2*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
-    c15 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
-    c16 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2*arm_cyl_rod_z
-    c35 = 2*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
-    c38 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
-    c39 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2*bucket_cyl_rod_z
-    c58 = 2*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
-    c61 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
-    c62 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z
-    return out
 
 
 def gamma_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_fast(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = 2.0*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2.0*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2.0*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2.0*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2.0*boom_cyl_l_rod_z
-    c12 = 2.0*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
-    c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y
-    c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2.0*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2.0*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2.0*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2.0*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2.0*arm_cyl_rod_z
-    c35 = 2.0*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
-    c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y
-    c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2.0*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2.0*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2.0*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2.0*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2.0*bucket_cyl_rod_z
-    c58 = 2.0*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
-    c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y
-    c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z, -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z, -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -8623,343 +7278,43 @@ def input_ranges_digging_fast(span):
     return out
 
 
-def _drivers_phi_digging_paced(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_paced(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
-
-
-def _drivers_jac_digging_paced(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_paced'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    c1 = 2*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    c2 = 2*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    c3 = 4*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    c4 = 2*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    c5 = 2*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    c6 = 4*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    c7 = 2*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    c8 = 2*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    c9 = 4*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    out = _zeros(32, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = -boom_cyl_l_barrel_a00
-    out[3] = -boom_cyl_l_barrel_a10
-    out[4] = -boom_cyl_l_barrel_a20
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0
-    out[19] = arm_cyl_barrel_a00
-    out[20] = arm_cyl_barrel_a10
-    out[21] = arm_cyl_barrel_a20
-    out[22] = -bucket_cyl_barrel_a00
-    out[23] = -bucket_cyl_barrel_a10
-    out[24] = -bucket_cyl_barrel_a20
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0
-    out[29] = bucket_cyl_barrel_a00
-    out[30] = bucket_cyl_barrel_a10
-    out[31] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_paced(q, u, p):
     """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
-
-
-def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    d2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    d3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    d4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    d5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    d6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    d7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    d8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    d9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_e0 + d2*boom_cyl_l_barrel_e3 - d1*boom_cyl_l_barrel_e2, d3*boom_cyl_l_barrel_e1 + d1*boom_cyl_l_barrel_e3 + d2*boom_cyl_l_barrel_e2, d2*boom_cyl_l_barrel_e1 - d1*boom_cyl_l_barrel_e0, d1*boom_cyl_l_barrel_e1 + d2*boom_cyl_l_barrel_e0, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_e0 + d5*arm_cyl_barrel_e3 - d4*arm_cyl_barrel_e2, d6*arm_cyl_barrel_e1 + d4*arm_cyl_barrel_e3 + d5*arm_cyl_barrel_e2, d5*arm_cyl_barrel_e1 - d4*arm_cyl_barrel_e0, d4*arm_cyl_barrel_e1 + d5*arm_cyl_barrel_e0, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_e0 + d8*bucket_cyl_barrel_e3 - d7*bucket_cyl_barrel_e2, d9*bucket_cyl_barrel_e1 + d7*bucket_cyl_barrel_e3 + d8*bucket_cyl_barrel_e2, d8*bucket_cyl_barrel_e1 - d7*bucket_cyl_barrel_e0, d7*bucket_cyl_barrel_e1 + d8*bucket_cyl_barrel_e0, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_paced(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_paced(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_digging_paced(q, u, ud, p))
-
-
-def _drivers_nu_digging_paced_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, ud3]
+    return _join(94, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = 2*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2*boom_cyl_l_rod_z
-    c12 = 2*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
-    c15 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
-    c16 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2*arm_cyl_rod_z
-    c35 = 2*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
-    c38 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
-    c39 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2*bucket_cyl_rod_z
-    c58 = 2*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
-    c61 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
-    c62 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z
-    return out
 
 
 def gamma_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = 2.0*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2.0*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2.0*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2.0*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2.0*boom_cyl_l_rod_z
-    c12 = 2.0*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
-    c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y
-    c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2.0*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2.0*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2.0*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2.0*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2.0*arm_cyl_rod_z
-    c35 = 2.0*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
-    c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y
-    c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2.0*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2.0*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2.0*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2.0*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2.0*bucket_cyl_rod_z
-    c58 = 2.0*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
-    c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y
-    c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z, -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z, -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -9186,343 +7541,43 @@ def input_ranges_digging_paced(span):
     return out
 
 
-def _drivers_phi_oscillation(q, u, p):
-    """Phi of the driver rows of case 'oscillation'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_e0 - 2*cos(c0)*upper_e3
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_oscillation(q, u, p):
     """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_phi(q, p), _drivers_phi_oscillation(q, u, p))
-
-
-def _drivers_jac_oscillation(q, u, p):
-    """Phi_q values of the driver rows of case 'oscillation'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    c1 = 2*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    c2 = 2*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    c3 = 4*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    c4 = 2*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    c5 = 2*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    c6 = 4*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    c7 = 2*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    c8 = 2*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    c9 = 4*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    out = _zeros(32, q, u)
-    out[0] = 2*sin(c0)
-    out[1] = -2*cos(c0)
-    out[2] = -boom_cyl_l_barrel_a00
-    out[3] = -boom_cyl_l_barrel_a10
-    out[4] = -boom_cyl_l_barrel_a20
-    out[5] = c3*boom_cyl_l_barrel_e0 + c2*boom_cyl_l_barrel_e3 - c1*boom_cyl_l_barrel_e2
-    out[6] = c3*boom_cyl_l_barrel_e1 + c1*boom_cyl_l_barrel_e3 + c2*boom_cyl_l_barrel_e2
-    out[7] = c2*boom_cyl_l_barrel_e1 - c1*boom_cyl_l_barrel_e0
-    out[8] = c1*boom_cyl_l_barrel_e1 + c2*boom_cyl_l_barrel_e0
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c6*arm_cyl_barrel_e0 + c5*arm_cyl_barrel_e3 - c4*arm_cyl_barrel_e2
-    out[16] = c6*arm_cyl_barrel_e1 + c4*arm_cyl_barrel_e3 + c5*arm_cyl_barrel_e2
-    out[17] = c5*arm_cyl_barrel_e1 - c4*arm_cyl_barrel_e0
-    out[18] = c4*arm_cyl_barrel_e1 + c5*arm_cyl_barrel_e0
-    out[19] = arm_cyl_barrel_a00
-    out[20] = arm_cyl_barrel_a10
-    out[21] = arm_cyl_barrel_a20
-    out[22] = -bucket_cyl_barrel_a00
-    out[23] = -bucket_cyl_barrel_a10
-    out[24] = -bucket_cyl_barrel_a20
-    out[25] = c9*bucket_cyl_barrel_e0 + c8*bucket_cyl_barrel_e3 - c7*bucket_cyl_barrel_e2
-    out[26] = c9*bucket_cyl_barrel_e1 + c7*bucket_cyl_barrel_e3 + c8*bucket_cyl_barrel_e2
-    out[27] = c8*bucket_cyl_barrel_e1 - c7*bucket_cyl_barrel_e0
-    out[28] = c7*bucket_cyl_barrel_e1 + c8*bucket_cyl_barrel_e0
-    out[29] = bucket_cyl_barrel_a00
-    out[30] = bucket_cyl_barrel_a10
-    out[31] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_oscillation(q, u, p):
     """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_jac(q, p), _drivers_jac_oscillation(q, u, p))
-
-
-def _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p):
-    """Phi of the driver rows of case 'oscillation'.; Phi_q values of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = 2.0*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
-    d2 = 2.0*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y)
-    d3 = 4.0*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x)
-    d4 = 2.0*(arm_cyl_rod_z - arm_cyl_barrel_z)
-    d5 = 2.0*(arm_cyl_rod_y - arm_cyl_barrel_y)
-    d6 = 4.0*(arm_cyl_rod_x - arm_cyl_barrel_x)
-    d7 = 2.0*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
-    d8 = 2.0*(bucket_cyl_rod_y - bucket_cyl_barrel_y)
-    d9 = 4.0*(bucket_cyl_rod_x - bucket_cyl_barrel_x)
-    return [2.0*math.sin(c0)*upper_e0 - 2.0*math.cos(c0)*upper_e3, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_e0 + d2*boom_cyl_l_barrel_e3 - d1*boom_cyl_l_barrel_e2, d3*boom_cyl_l_barrel_e1 + d1*boom_cyl_l_barrel_e3 + d2*boom_cyl_l_barrel_e2, d2*boom_cyl_l_barrel_e1 - d1*boom_cyl_l_barrel_e0, d1*boom_cyl_l_barrel_e1 + d2*boom_cyl_l_barrel_e0, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_e0 + d5*arm_cyl_barrel_e3 - d4*arm_cyl_barrel_e2, d6*arm_cyl_barrel_e1 + d4*arm_cyl_barrel_e3 + d5*arm_cyl_barrel_e2, d5*arm_cyl_barrel_e1 - d4*arm_cyl_barrel_e0, d4*arm_cyl_barrel_e1 + d5*arm_cyl_barrel_e0, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_e0 + d8*bucket_cyl_barrel_e3 - d7*bucket_cyl_barrel_e2, d9*bucket_cyl_barrel_e1 + d7*bucket_cyl_barrel_e3 + d8*bucket_cyl_barrel_e2, d8*bucket_cyl_barrel_e1 - d7*bucket_cyl_barrel_e0, d7*bucket_cyl_barrel_e1 + d8*bucket_cyl_barrel_e0, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_oscillation(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_oscillation(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_e3 + cos(c0)*upper_e0)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows)."""
-    return _join(94, _drivers_nu_oscillation(q, u, ud, p))
-
-
-def _drivers_nu_oscillation_s(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_e3 + math.cos(c0)*upper_e0)*ud0, ud1, ud2, ud3]
+    return _join(94, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_oscillation_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 94 + s1_0
-
-
-def _drivers_gamma_oscillation(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'."""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = 2*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2*boom_cyl_l_rod_z
-    c12 = 2*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
-    c15 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
-    c16 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2*arm_cyl_rod_z
-    c35 = 2*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
-    c38 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
-    c39 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2*bucket_cyl_rod_z
-    c58 = 2*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
-    c61 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
-    c62 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    out = _zeros(4, q, u)
-    out[0] = -2*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*ud0**2 - (c2*upper_e3 + c1*upper_e0)*udd0
-    out[1] = -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z
-    out[2] = -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z
-    out[3] = -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z
-    return out
 
 
 def gamma_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_oscillation(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_oscillation_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = 2.0*boom_cyl_l_barrel_e0
-    c4 = c3*v_boom_cyl_l_barrel_e3
-    c5 = 2.0*boom_cyl_l_barrel_e3
-    c6 = c5*v_boom_cyl_l_barrel_e0
-    c7 = 2.0*boom_cyl_l_barrel_e2
-    c8 = c7*v_boom_cyl_l_barrel_e1
-    c9 = 2.0*boom_cyl_l_barrel_e1
-    c10 = c9*v_boom_cyl_l_barrel_e2
-    c11 = 2.0*boom_cyl_l_rod_z
-    c12 = 2.0*boom_cyl_l_barrel_z
-    c13 = -c12 + c11
-    c14 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
-    c15 = -2.0*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y
-    c16 = 4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0
-    c17 = 4.0*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
-    c18 = c17 + c16
-    c19 = c3*v_boom_cyl_l_barrel_e2
-    c20 = c7*v_boom_cyl_l_barrel_e0
-    c21 = c9*v_boom_cyl_l_barrel_e3
-    c22 = c5*v_boom_cyl_l_barrel_e1
-    c23 = c22 + c21 - c20 - c19
-    c24 = c10 + c8 + c6 + c4
-    c25 = c12 - c11
-    c26 = 2.0*arm_cyl_barrel_e0
-    c27 = c26*v_arm_cyl_barrel_e3
-    c28 = 2.0*arm_cyl_barrel_e3
-    c29 = c28*v_arm_cyl_barrel_e0
-    c30 = 2.0*arm_cyl_barrel_e2
-    c31 = c30*v_arm_cyl_barrel_e1
-    c32 = 2.0*arm_cyl_barrel_e1
-    c33 = c32*v_arm_cyl_barrel_e2
-    c34 = 2.0*arm_cyl_rod_z
-    c35 = 2.0*arm_cyl_barrel_z
-    c36 = -c35 + c34
-    c37 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
-    c38 = -2.0*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y
-    c39 = 4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0
-    c40 = 4.0*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
-    c41 = c40 + c39
-    c42 = c26*v_arm_cyl_barrel_e2
-    c43 = c30*v_arm_cyl_barrel_e0
-    c44 = c32*v_arm_cyl_barrel_e3
-    c45 = c28*v_arm_cyl_barrel_e1
-    c46 = c45 + c44 - c43 - c42
-    c47 = c33 + c31 + c29 + c27
-    c48 = c35 - c34
-    c49 = 2.0*bucket_cyl_barrel_e0
-    c50 = c49*v_bucket_cyl_barrel_e3
-    c51 = 2.0*bucket_cyl_barrel_e3
-    c52 = c51*v_bucket_cyl_barrel_e0
-    c53 = 2.0*bucket_cyl_barrel_e2
-    c54 = c53*v_bucket_cyl_barrel_e1
-    c55 = 2.0*bucket_cyl_barrel_e1
-    c56 = c55*v_bucket_cyl_barrel_e2
-    c57 = 2.0*bucket_cyl_rod_z
-    c58 = 2.0*bucket_cyl_barrel_z
-    c59 = -c58 + c57
-    c60 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
-    c61 = -2.0*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y
-    c62 = 4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0
-    c63 = 4.0*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
-    c64 = c63 + c62
-    c65 = c49*v_bucket_cyl_barrel_e2
-    c66 = c53*v_bucket_cyl_barrel_e0
-    c67 = c55*v_bucket_cyl_barrel_e3
-    c68 = c51*v_bucket_cyl_barrel_e1
-    c69 = c68 + c67 - c66 - c65
-    c70 = c56 + c54 + c52 + c50
-    c71 = c58 - c57
-    return [-2.0*(c2*v_upper_e3 + c1*v_upper_e0)*ud0 - (-1/2*c2*upper_e0 + (1/2)*c1*upper_e3)*(ud0*ud0) - (c2*upper_e3 + c1*upper_e0)*udd0, -(c25*v_boom_cyl_l_barrel_e2 + c15*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e0 + udd1 - (-c10 - c8 - c6 - c4)*v_boom_cyl_l_barrel_y - (c15*v_boom_cyl_l_barrel_e2 + c14*v_boom_cyl_l_barrel_e1 + c13*v_boom_cyl_l_barrel_e3)*v_boom_cyl_l_barrel_e1 - c18*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c23 - (-c17 - c16)*v_boom_cyl_l_barrel_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c24 - c23*v_boom_cyl_l_rod_z - c24*v_boom_cyl_l_rod_y - (c13*v_boom_cyl_l_barrel_e1 + c15*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e3 - (c15*v_boom_cyl_l_barrel_e1 + c25*v_boom_cyl_l_barrel_e0)*v_boom_cyl_l_barrel_e2 - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c18 - (c19 - c22 - c21 + c20)*v_boom_cyl_l_barrel_z, -(c48*v_arm_cyl_barrel_e2 + c38*v_arm_cyl_barrel_e3 + c37*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e0 + udd2 - (-c33 - c31 - c29 - c27)*v_arm_cyl_barrel_y - (c38*v_arm_cyl_barrel_e2 + c37*v_arm_cyl_barrel_e1 + c36*v_arm_cyl_barrel_e3)*v_arm_cyl_barrel_e1 - c41*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c46 - (-c40 - c39)*v_arm_cyl_barrel_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c47 - c46*v_arm_cyl_rod_z - c47*v_arm_cyl_rod_y - (c36*v_arm_cyl_barrel_e1 + c38*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e3 - (c38*v_arm_cyl_barrel_e1 + c48*v_arm_cyl_barrel_e0)*v_arm_cyl_barrel_e2 - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c41 - (c42 - c45 - c44 + c43)*v_arm_cyl_barrel_z, -(c71*v_bucket_cyl_barrel_e2 + c61*v_bucket_cyl_barrel_e3 + c60*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e0 + udd3 - (-c56 - c54 - c52 - c50)*v_bucket_cyl_barrel_y - (c61*v_bucket_cyl_barrel_e2 + c60*v_bucket_cyl_barrel_e1 + c59*v_bucket_cyl_barrel_e3)*v_bucket_cyl_barrel_e1 - c64*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c69 - (-c63 - c62)*v_bucket_cyl_barrel_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c70 - c69*v_bucket_cyl_rod_z - c70*v_bucket_cyl_rod_y - (c59*v_bucket_cyl_barrel_e1 + c61*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e3 - (c61*v_bucket_cyl_barrel_e1 + c71*v_bucket_cyl_barrel_e0)*v_bucket_cyl_barrel_e2 - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c64 - (c65 - c68 - c67 + c66)*v_bucket_cyl_barrel_z]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_oscillation_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 

@@ -3608,7 +3608,7 @@ def _joints_phi(q, p):
 
 
 def _drivers_phi_digging(q, u, p):
-    """Phi of the driver rows of case 'digging'."""
+    """Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
@@ -3636,7 +3636,7 @@ def phi_digging(q, u, p):
 
 
 def _drivers_jac_digging(q, u, p):
-    """Phi_q values of the driver rows of case 'digging'."""
+    """Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
@@ -4506,7 +4506,7 @@ def _joints_phi_joints_jac_s(q, p):
 
 
 def _drivers_phi_digging_drivers_jac_digging_s(q, u, p):
-    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_phi_bucket_toggle and drivers_jac_bucket_toggle, drivers_phi_bucket_stroke and drivers_jac_bucket_stroke, drivers_phi_bucket_near_toggle and drivers_jac_bucket_near_toggle, drivers_phi_digging_fast and drivers_jac_digging_fast, drivers_phi_digging_paced and drivers_jac_digging_paced, drivers_phi_oscillation and drivers_jac_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
@@ -4582,7 +4582,7 @@ def phi_jac_s_digging(q, u, p):
 
 
 def _drivers_nu_digging(q, u, ud, p):
-    """nu of the driver rows of case 'digging'."""
+    """nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -4602,7 +4602,7 @@ def nu_digging(q, u, ud, p):
 
 
 def _drivers_nu_digging_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -6169,7 +6169,7 @@ def _joints_gamma(q, v, p):
 
 
 def _drivers_gamma_digging(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'."""
+    """gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -7797,7 +7797,7 @@ def _joints_gamma_s(q, v, p):
 
 
 def _drivers_gamma_digging_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -8172,7 +8172,7 @@ def input_ranges_digging(span):
 
 
 def _drivers_phi_level_cut(q, u, p):
-    """Phi of the driver rows of case 'level_cut'."""
+    """Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, u1, u2, u3 = u
     upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
@@ -8195,7 +8195,7 @@ def phi_level_cut(q, u, p):
 
 
 def _drivers_jac_level_cut(q, u, p):
-    """Phi_q values of the driver rows of case 'level_cut'."""
+    """Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, _, _, u3 = u
     c0 = sin(u0)
@@ -8258,7 +8258,7 @@ def jac_level_cut(q, u, p):
 
 
 def _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p):
-    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_phi_trench_wall and drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, u1, u2, u3 = u
     upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
@@ -8315,7 +8315,7 @@ def phi_jac_s_level_cut(q, u, p):
 
 
 def _drivers_nu_level_cut(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'."""
+    """nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -8337,7 +8337,7 @@ def nu_level_cut(q, u, ud, p):
 
 
 def _drivers_nu_level_cut_s(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -8355,7 +8355,7 @@ def nu_s_level_cut(q, u, ud, p):
 
 
 def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'."""
+    """gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
     u0, _, _, u3 = u
@@ -8451,7 +8451,7 @@ def gamma_level_cut(q, v, u, ud, udd, p):
 
 
 def _drivers_gamma_level_cut_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
     u0, _, _, u3 = u
@@ -8621,375 +8621,43 @@ def input_ranges_level_cut(span):
     return out
 
 
-def _drivers_phi_trench_wall(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    bucket_a00 = cos(bucket_alpha)*cos(bucket_gamma) - sin(bucket_alpha)*sin(bucket_beta)*sin(bucket_gamma)
-    bucket_a02 = cos(bucket_alpha)*sin(bucket_gamma) + cos(bucket_gamma)*sin(bucket_alpha)*sin(bucket_beta)
-    bucket_a20 = -cos(bucket_beta)*sin(bucket_gamma)
-    bucket_a22 = cos(bucket_beta)*cos(bucket_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x
-    out[2] = (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22
-    return out
-
-
 def phi_trench_wall(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
-
-
-def _drivers_jac_trench_wall(q, u, p):
-    """Phi_q values of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, _, _, u3 = u
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = sin(bucket_alpha)
-    c13 = sin(bucket_gamma)
-    c14 = (403/500)*c12*c13
-    c15 = cos(bucket_gamma)
-    c16 = c12*c15
-    c17 = (32/25)*c16
-    c18 = sin(bucket_beta)
-    c19 = cos(bucket_alpha)
-    c20 = (32/25)*c13
-    c21 = c20*c19
-    c22 = (403/500)*c15*c19
-    c23 = cos(bucket_beta)
-    c24 = cos(bucket_gamma)
-    c25 = sin(bucket_beta)
-    c26 = sin(bucket_gamma)
-    c27 = cos(bucket_beta)
-    c28 = cos(u3)
-    c29 = sin(bucket_alpha)
-    c30 = sin(bucket_gamma)
-    c31 = c30*c29
-    c32 = sin(bucket_beta)
-    c33 = cos(bucket_gamma)
-    c34 = c33*cos(bucket_alpha)
-    c35 = sin(u3)
-    c36 = cos(bucket_beta)
-    out = _zeros(13, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = 1
-    out[4] = c18*c22 - c18*c21 - c17 - c14
-    out[5] = (403/500)*c16*c23 - c12*c20*c23
-    out[6] = -c18*c17 - c14*c18 + c22 - c21
-    out[7] = 1
-    out[8] = (32/25)*c26*c25 - 403/500*c24*c25
-    out[9] = -32/25*c24*c27 - 403/500*c26*c27
-    out[10] = -c28*(c32*c34 - c31)
-    out[11] = -c28*c29*c33*c36 - c32*c33*c35
-    out[12] = -c30*c36*c35 - c28*(-c32*c31 + c34)
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
 def jac_trench_wall(q, u, p):
     """Output 'jac' (420 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
-
-
-def _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'.; Phi_q values of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    bucket_a00 = math.cos(bucket_alpha)*math.cos(bucket_gamma) - math.sin(bucket_alpha)*math.sin(bucket_beta)*math.sin(bucket_gamma)
-    bucket_a02 = math.cos(bucket_alpha)*math.sin(bucket_gamma) + math.cos(bucket_gamma)*math.sin(bucket_alpha)*math.sin(bucket_beta)
-    bucket_a20 = -math.cos(bucket_beta)*math.sin(bucket_gamma)
-    bucket_a22 = math.cos(bucket_beta)*math.cos(bucket_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = math.sin(bucket_alpha)
-    d13 = math.sin(bucket_gamma)
-    d14 = (403/500)*d12*d13
-    d15 = math.cos(bucket_gamma)
-    d16 = d12*d15
-    d17 = (32/25)*d16
-    d18 = math.sin(bucket_beta)
-    d19 = math.cos(bucket_alpha)
-    d20 = (32/25)*d13
-    d21 = d20*d19
-    d22 = (403/500)*d15*d19
-    d23 = math.cos(bucket_beta)
-    d24 = math.cos(bucket_gamma)
-    d25 = math.sin(bucket_beta)
-    d26 = math.sin(bucket_gamma)
-    d27 = math.cos(bucket_beta)
-    d28 = math.cos(u3)
-    d29 = math.sin(bucket_alpha)
-    d30 = math.sin(bucket_gamma)
-    d31 = d30*d29
-    d32 = math.sin(bucket_beta)
-    d33 = math.cos(bucket_gamma)
-    d34 = d33*math.cos(bucket_alpha)
-    d35 = math.sin(u3)
-    d36 = math.cos(bucket_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x, (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z, -math.cos(u3)*bucket_a02 + math.sin(u3)*bucket_a22], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), 1.0, d18*d22 - d18*d21 - d17 - d14, (403/500)*d16*d23 - d12*d20*d23, -d18*d17 - d14*d18 + d22 - d21, 1.0, (32/25)*d26*d25 - 403/500*d24*d25, -32/25*d24*d27 - 403/500*d26*d27, -d28*(d32*d34 - d31), -d28*d29*d33*d36 - d32*d33*d35, -d30*d36*d35 - d28*(-d32*d31 + d34)]
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
 def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_trench_wall(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    bucket_a02 = cos(bucket_alpha)*sin(bucket_gamma) + cos(bucket_gamma)*sin(bucket_alpha)*sin(bucket_beta)
-    bucket_a22 = cos(bucket_beta)*cos(bucket_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3
-    return out
 
 
 def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_trench_wall(q, u, ud, p))
-
-
-def _drivers_nu_trench_wall_s(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    bucket_a02 = math.cos(bucket_alpha)*math.sin(bucket_gamma) + math.cos(bucket_gamma)*math.sin(bucket_alpha)*math.sin(bucket_beta)
-    bucket_a22 = math.cos(bucket_beta)*math.cos(bucket_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, -(math.cos(u3)*bucket_a22 + math.sin(u3)*bucket_a02)*ud3]
+    return _join(80, _drivers_nu_level_cut(q, u, ud, p))
 
 
 def nu_s_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_trench_wall_s(q, u, ud, p)
+    s1_0 = _drivers_nu_level_cut_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    bucket_a02 = cos(bucket_alpha)*sin(bucket_gamma) + cos(bucket_gamma)*sin(bucket_alpha)*sin(bucket_beta)
-    bucket_a22 = cos(bucket_beta)*cos(bucket_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = sin(bucket_gamma)
-    c26 = cos(bucket_alpha)
-    c27 = c25*c26
-    c28 = (403/500)*c27
-    c29 = cos(bucket_gamma)
-    c30 = c26*c29
-    c31 = (32/25)*c30
-    c32 = sin(bucket_beta)
-    c33 = sin(bucket_alpha)
-    c34 = c25*c33
-    c35 = (32/25)*c34
-    c36 = c29*c33
-    c37 = (403/500)*c36
-    c38 = -c32*c37 + c32*c35
-    c39 = c38 - c31 - c28
-    c40 = cos(bucket_beta)
-    c41 = (32/25)*c40
-    c42 = (403/500)*c40
-    c43 = c30*c42 - c27*c41
-    c44 = -c31*c32 - c28*c32 - c37 + c35
-    c45 = -c36*c41 - c34*c42
-    c46 = cos(bucket_gamma)
-    c47 = cos(bucket_beta)
-    c48 = sin(bucket_gamma)
-    c49 = (32/25)*c48*c47 - 403/500*c46*c47
-    c50 = sin(bucket_beta)
-    c51 = (32/25)*c46*c50 + (403/500)*c48*c50
-    c52 = sin(u3)
-    c53 = cos(u3)
-    c54 = cos(bucket_alpha)
-    c55 = cos(bucket_gamma)
-    c56 = c54*c55
-    c57 = cos(bucket_beta)
-    c58 = c53*c57
-    c59 = c56*c58
-    c60 = sin(bucket_gamma)
-    c61 = c54*c60
-    c62 = sin(bucket_beta)
-    c63 = sin(bucket_alpha)
-    c64 = c55*c63
-    c65 = c64*c62
-    c66 = c53*(-c65 - c61)
-    c67 = c53*(-c61*c62 - c64)
-    c68 = c60*c63
-    c69 = c52*c60*c62 + c58*c68
-    c70 = c52*c57
-    c71 = -c55*c70
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(c39*v_bucket_gamma + c45*v_bucket_beta + c44*v_bucket_alpha)*v_bucket_gamma - v_bucket_beta*(c45*v_bucket_gamma + c38*v_bucket_beta + c43*v_bucket_alpha) - (c44*v_bucket_gamma + c43*v_bucket_beta + c39*v_bucket_alpha)*v_bucket_alpha + udd1
-    out[2] = -(c49*v_bucket_gamma + c51*v_bucket_beta)*v_bucket_gamma - v_bucket_beta*(c51*v_bucket_gamma + c49*v_bucket_beta) + udd2
-    out[3] = -2*ud3*((-c58*c60 + c52*(-c62*c68 + c56))*v_bucket_gamma + c52*(c56*c62 - c68)*v_bucket_alpha + v_bucket_beta*(c64*c70 - c53*c55*c62)) - (-c52*bucket_a22 + c53*bucket_a02)*ud3**2 - ((c71 - c66)*v_bucket_gamma + c69*v_bucket_beta - c67*v_bucket_alpha)*v_bucket_gamma - (-c66*v_bucket_alpha - c67*v_bucket_gamma - c59*v_bucket_beta)*v_bucket_alpha - v_bucket_beta*(c69*v_bucket_gamma + v_bucket_beta*(c53*c65 + c71) - c59*v_bucket_alpha) - (c53*bucket_a22 + c52*bucket_a02)*udd3
-    return out
 
 
 def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    bucket_a02 = math.cos(bucket_alpha)*math.sin(bucket_gamma) + math.cos(bucket_gamma)*math.sin(bucket_alpha)*math.sin(bucket_beta)
-    bucket_a22 = math.cos(bucket_beta)*math.cos(bucket_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = math.sin(bucket_gamma)
-    c26 = math.cos(bucket_alpha)
-    c27 = c25*c26
-    c28 = (403/500)*c27
-    c29 = math.cos(bucket_gamma)
-    c30 = c26*c29
-    c31 = (32/25)*c30
-    c32 = math.sin(bucket_beta)
-    c33 = math.sin(bucket_alpha)
-    c34 = c25*c33
-    c35 = (32/25)*c34
-    c36 = c29*c33
-    c37 = (403/500)*c36
-    c38 = -c32*c37 + c32*c35
-    c39 = c38 - c31 - c28
-    c40 = math.cos(bucket_beta)
-    c41 = (32/25)*c40
-    c42 = (403/500)*c40
-    c43 = c30*c42 - c27*c41
-    c44 = -c31*c32 - c28*c32 - c37 + c35
-    c45 = -c36*c41 - c34*c42
-    c46 = math.cos(bucket_gamma)
-    c47 = math.cos(bucket_beta)
-    c48 = math.sin(bucket_gamma)
-    c49 = (32/25)*c48*c47 - 403/500*c46*c47
-    c50 = math.sin(bucket_beta)
-    c51 = (32/25)*c46*c50 + (403/500)*c48*c50
-    c52 = math.sin(u3)
-    c53 = math.cos(u3)
-    c54 = math.cos(bucket_alpha)
-    c55 = math.cos(bucket_gamma)
-    c56 = c54*c55
-    c57 = math.cos(bucket_beta)
-    c58 = c53*c57
-    c59 = c56*c58
-    c60 = math.sin(bucket_gamma)
-    c61 = c54*c60
-    c62 = math.sin(bucket_beta)
-    c63 = math.sin(bucket_alpha)
-    c64 = c55*c63
-    c65 = c64*c62
-    c66 = c53*(-c65 - c61)
-    c67 = c53*(-c61*c62 - c64)
-    c68 = c60*c63
-    c69 = c52*c60*c62 + c58*c68
-    c70 = c52*c57
-    c71 = -c55*c70
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(c39*v_bucket_gamma + c45*v_bucket_beta + c44*v_bucket_alpha)*v_bucket_gamma - v_bucket_beta*(c45*v_bucket_gamma + c38*v_bucket_beta + c43*v_bucket_alpha) - (c44*v_bucket_gamma + c43*v_bucket_beta + c39*v_bucket_alpha)*v_bucket_alpha + udd1, -(c49*v_bucket_gamma + c51*v_bucket_beta)*v_bucket_gamma - v_bucket_beta*(c51*v_bucket_gamma + c49*v_bucket_beta) + udd2, -2.0*ud3*((-c58*c60 + c52*(-c62*c68 + c56))*v_bucket_gamma + c52*(c56*c62 - c68)*v_bucket_alpha + v_bucket_beta*(c64*c70 - c53*c55*c62)) - (-c52*bucket_a22 + c53*bucket_a02)*(ud3*ud3) - ((c71 - c66)*v_bucket_gamma + c69*v_bucket_beta - c67*v_bucket_alpha)*v_bucket_gamma - (-c66*v_bucket_alpha - c67*v_bucket_gamma - c59*v_bucket_beta)*v_bucket_alpha - v_bucket_beta*(c69*v_bucket_gamma + v_bucket_beta*(c53*c65 + c71) - c59*v_bucket_alpha) - (c53*bucket_a22 + c52*bucket_a02)*udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
 def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_level_cut_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -9071,553 +8739,43 @@ def input_ranges_trench_wall(span):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = sin(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = cos(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = sin(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = cos(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = sin(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = cos(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_toggle(q, u, p):
     """Output 'jac' (437 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'.; Phi_q values of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.sin(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.cos(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.sin(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.cos(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.sin(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.cos(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d12*d24*d22 + d20*d19*d24 + d16*d18*d23, -d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d25*d37*d35 + d33*d32*d37 + d29*d31*d36, -d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d38*d50*d48 + d46*d45*d50 + d42*d44*d49, -d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = cos(boom_cyl_l_barrel_beta)
-    c27 = sin(boom_cyl_l_barrel_alpha)
-    c28 = sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = sin(boom_cyl_l_barrel_beta)
-    c37 = cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = cos(arm_cyl_barrel_beta)
-    c63 = sin(arm_cyl_barrel_alpha)
-    c64 = sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = sin(arm_cyl_barrel_beta)
-    c73 = cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = cos(bucket_cyl_barrel_beta)
-    c99 = sin(bucket_cyl_barrel_alpha)
-    c100 = sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = sin(bucket_cyl_barrel_beta)
-    c109 = cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3
-    return out
 
 
 def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = math.cos(boom_cyl_l_barrel_beta)
-    c27 = math.sin(boom_cyl_l_barrel_alpha)
-    c28 = math.sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = math.cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = math.sin(boom_cyl_l_barrel_beta)
-    c37 = math.cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = math.cos(arm_cyl_barrel_beta)
-    c63 = math.sin(arm_cyl_barrel_alpha)
-    c64 = math.sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = math.cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = math.sin(arm_cyl_barrel_beta)
-    c73 = math.cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = math.cos(bucket_cyl_barrel_beta)
-    c99 = math.sin(bucket_cyl_barrel_alpha)
-    c100 = math.sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = math.cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = math.sin(bucket_cyl_barrel_beta)
-    c109 = math.cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1, -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2, -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -9669,553 +8827,43 @@ def input_ranges_bucket_toggle(span):
     return out
 
 
-def _drivers_phi_bucket_stroke(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_stroke(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
-
-
-def _drivers_jac_bucket_stroke(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = sin(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = cos(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = sin(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = cos(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = sin(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = cos(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_stroke(q, u, p):
     """Output 'jac' (437 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
-
-
-def _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'.; Phi_q values of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.sin(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.cos(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.sin(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.cos(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.sin(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.cos(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d12*d24*d22 + d20*d19*d24 + d16*d18*d23, -d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d25*d37*d35 + d33*d32*d37 + d29*d31*d36, -d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d38*d50*d48 + d46*d45*d50 + d42*d44*d49, -d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_stroke(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_stroke(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_stroke(q, u, ud, p))
-
-
-def _drivers_nu_bucket_stroke_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_stroke_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = cos(boom_cyl_l_barrel_beta)
-    c27 = sin(boom_cyl_l_barrel_alpha)
-    c28 = sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = sin(boom_cyl_l_barrel_beta)
-    c37 = cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = cos(arm_cyl_barrel_beta)
-    c63 = sin(arm_cyl_barrel_alpha)
-    c64 = sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = sin(arm_cyl_barrel_beta)
-    c73 = cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = cos(bucket_cyl_barrel_beta)
-    c99 = sin(bucket_cyl_barrel_alpha)
-    c100 = sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = sin(bucket_cyl_barrel_beta)
-    c109 = cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3
-    return out
 
 
 def gamma_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = math.cos(boom_cyl_l_barrel_beta)
-    c27 = math.sin(boom_cyl_l_barrel_alpha)
-    c28 = math.sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = math.cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = math.sin(boom_cyl_l_barrel_beta)
-    c37 = math.cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = math.cos(arm_cyl_barrel_beta)
-    c63 = math.sin(arm_cyl_barrel_alpha)
-    c64 = math.sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = math.cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = math.sin(arm_cyl_barrel_beta)
-    c73 = math.cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = math.cos(bucket_cyl_barrel_beta)
-    c99 = math.sin(bucket_cyl_barrel_alpha)
-    c100 = math.sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = math.cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = math.sin(bucket_cyl_barrel_beta)
-    c109 = math.cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1, -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2, -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -10267,553 +8915,43 @@ def input_ranges_bucket_stroke(span):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_near_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_near_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = sin(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = cos(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = sin(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = cos(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = sin(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = cos(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_near_toggle(q, u, p):
     """Output 'jac' (437 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'.; Phi_q values of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.sin(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.cos(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.sin(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.cos(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.sin(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.cos(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d12*d24*d22 + d20*d19*d24 + d16*d18*d23, -d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d25*d37*d35 + d33*d32*d37 + d29*d31*d36, -d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d38*d50*d48 + d46*d45*d50 + d42*d44*d49, -d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_near_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_near_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_near_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_near_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = cos(boom_cyl_l_barrel_beta)
-    c27 = sin(boom_cyl_l_barrel_alpha)
-    c28 = sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = sin(boom_cyl_l_barrel_beta)
-    c37 = cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = cos(arm_cyl_barrel_beta)
-    c63 = sin(arm_cyl_barrel_alpha)
-    c64 = sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = sin(arm_cyl_barrel_beta)
-    c73 = cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = cos(bucket_cyl_barrel_beta)
-    c99 = sin(bucket_cyl_barrel_alpha)
-    c100 = sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = sin(bucket_cyl_barrel_beta)
-    c109 = cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3
-    return out
 
 
 def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = math.cos(boom_cyl_l_barrel_beta)
-    c27 = math.sin(boom_cyl_l_barrel_alpha)
-    c28 = math.sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = math.cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = math.sin(boom_cyl_l_barrel_beta)
-    c37 = math.cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = math.cos(arm_cyl_barrel_beta)
-    c63 = math.sin(arm_cyl_barrel_alpha)
-    c64 = math.sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = math.cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = math.sin(arm_cyl_barrel_beta)
-    c73 = math.cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = math.cos(bucket_cyl_barrel_beta)
-    c99 = math.sin(bucket_cyl_barrel_alpha)
-    c100 = math.sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = math.cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = math.sin(bucket_cyl_barrel_beta)
-    c109 = math.cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1, -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2, -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -10876,553 +9014,43 @@ def input_ranges_bucket_near_toggle(span):
     return out
 
 
-def _drivers_phi_digging_fast(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_fast(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_fast(q, u, p))
-
-
-def _drivers_jac_digging_fast(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = sin(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = cos(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = sin(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = cos(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = sin(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = cos(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_fast(q, u, p):
     """Output 'jac' (437 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_fast(q, u, p))
-
-
-def _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'.; Phi_q values of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.sin(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.cos(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.sin(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.cos(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.sin(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.cos(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d12*d24*d22 + d20*d19*d24 + d16*d18*d23, -d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d25*d37*d35 + d33*d32*d37 + d29*d31*d36, -d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d38*d50*d48 + d46*d45*d50 + d42*d44*d49, -d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_fast(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_fast(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_fast(q, u, ud, p))
-
-
-def _drivers_nu_digging_fast_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_fast_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_fast(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = cos(boom_cyl_l_barrel_beta)
-    c27 = sin(boom_cyl_l_barrel_alpha)
-    c28 = sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = sin(boom_cyl_l_barrel_beta)
-    c37 = cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = cos(arm_cyl_barrel_beta)
-    c63 = sin(arm_cyl_barrel_alpha)
-    c64 = sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = sin(arm_cyl_barrel_beta)
-    c73 = cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = cos(bucket_cyl_barrel_beta)
-    c99 = sin(bucket_cyl_barrel_alpha)
-    c100 = sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = sin(bucket_cyl_barrel_beta)
-    c109 = cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3
-    return out
 
 
 def gamma_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_fast(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = math.cos(boom_cyl_l_barrel_beta)
-    c27 = math.sin(boom_cyl_l_barrel_alpha)
-    c28 = math.sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = math.cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = math.sin(boom_cyl_l_barrel_beta)
-    c37 = math.cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = math.cos(arm_cyl_barrel_beta)
-    c63 = math.sin(arm_cyl_barrel_alpha)
-    c64 = math.sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = math.cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = math.sin(arm_cyl_barrel_beta)
-    c73 = math.cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = math.cos(bucket_cyl_barrel_beta)
-    c99 = math.sin(bucket_cyl_barrel_alpha)
-    c100 = math.sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = math.cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = math.sin(bucket_cyl_barrel_beta)
-    c109 = math.cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1, -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2, -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -11649,553 +9277,43 @@ def input_ranges_digging_fast(span):
     return out
 
 
-def _drivers_phi_digging_paced(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_paced(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
-
-
-def _drivers_jac_digging_paced(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = sin(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = cos(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = sin(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = cos(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = sin(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = cos(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_paced(q, u, p):
     """Output 'jac' (437 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
-
-
-def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.sin(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.cos(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.sin(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.cos(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.sin(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.cos(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d12*d24*d22 + d20*d19*d24 + d16*d18*d23, -d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d25*d37*d35 + d33*d32*d37 + d29*d31*d36, -d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d38*d50*d48 + d46*d45*d50 + d42*d44*d49, -d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_paced(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_paced(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
-
-
-def _drivers_nu_digging_paced_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = cos(boom_cyl_l_barrel_beta)
-    c27 = sin(boom_cyl_l_barrel_alpha)
-    c28 = sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = sin(boom_cyl_l_barrel_beta)
-    c37 = cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = cos(arm_cyl_barrel_beta)
-    c63 = sin(arm_cyl_barrel_alpha)
-    c64 = sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = sin(arm_cyl_barrel_beta)
-    c73 = cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = cos(bucket_cyl_barrel_beta)
-    c99 = sin(bucket_cyl_barrel_alpha)
-    c100 = sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = sin(bucket_cyl_barrel_beta)
-    c109 = cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3
-    return out
 
 
 def gamma_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = math.cos(boom_cyl_l_barrel_beta)
-    c27 = math.sin(boom_cyl_l_barrel_alpha)
-    c28 = math.sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = math.cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = math.sin(boom_cyl_l_barrel_beta)
-    c37 = math.cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = math.cos(arm_cyl_barrel_beta)
-    c63 = math.sin(arm_cyl_barrel_alpha)
-    c64 = math.sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = math.cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = math.sin(arm_cyl_barrel_beta)
-    c73 = math.cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = math.cos(bucket_cyl_barrel_beta)
-    c99 = math.sin(bucket_cyl_barrel_alpha)
-    c100 = math.sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = math.cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = math.sin(bucket_cyl_barrel_beta)
-    c109 = math.cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1, -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2, -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -12422,553 +9540,43 @@ def input_ranges_digging_paced(span):
     return out
 
 
-def _drivers_phi_oscillation(q, u, p):
-    """Phi of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_oscillation(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_phi(q, p), _drivers_phi_oscillation(q, u, p))
-
-
-def _drivers_jac_oscillation(q, u, p):
-    """Phi_q values of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = sin(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = cos(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = sin(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = cos(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = sin(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = cos(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = sin(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = cos(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = -c0*c11*c10 - c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c12*c24*c22 + c20*c19*c24 + c16*c18*c23
-    out[8] = -c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c25*c37*c35 + c33*c32*c37 + c29*c31*c36
-    out[17] = -c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c38*c50*c48 + c46*c45*c50 + c42*c44*c49
-    out[26] = -c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_oscillation(q, u, p):
     """Output 'jac' (437 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_jac(q, p), _drivers_jac_oscillation(q, u, p))
-
-
-def _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p):
-    """Phi of the driver rows of case 'oscillation'.; Phi_q values of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = -math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = -math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = -math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.sin(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.cos(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.sin(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.cos(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.sin(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.cos(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.sin(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.cos(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), -d0*d11*d10 - d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d12*d24*d22 + d20*d19*d24 + d16*d18*d23, -d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d25*d37*d35 + d33*d32*d37 + d29*d31*d36, -d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d38*d50*d48 + d46*d45*d50 + d42*d44*d49, -d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_oscillation(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_oscillation(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_oscillation(q, u, ud, p))
-
-
-def _drivers_nu_oscillation_s(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_oscillation_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_oscillation(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = sin(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = cos(boom_cyl_l_barrel_beta)
-    c27 = sin(boom_cyl_l_barrel_alpha)
-    c28 = sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = sin(boom_cyl_l_barrel_beta)
-    c37 = cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = cos(arm_cyl_barrel_beta)
-    c63 = sin(arm_cyl_barrel_alpha)
-    c64 = sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = sin(arm_cyl_barrel_beta)
-    c73 = cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = cos(bucket_cyl_barrel_beta)
-    c99 = sin(bucket_cyl_barrel_alpha)
-    c100 = sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = sin(bucket_cyl_barrel_beta)
-    c109 = cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1
-    out[2] = -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2
-    out[3] = -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3
-    return out
 
 
 def gamma_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_oscillation(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_oscillation_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.sin(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.cos(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = -c19 + c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = -c4*c16 - c10*c18
-    c25 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c26 = math.cos(boom_cyl_l_barrel_beta)
-    c27 = math.sin(boom_cyl_l_barrel_alpha)
-    c28 = math.sin(boom_cyl_l_barrel_gamma)
-    c29 = c27*c28
-    c30 = c26*c29
-    c31 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c32 = math.cos(boom_cyl_l_barrel_alpha)
-    c33 = c28*c32
-    c34 = c26*c33
-    c35 = -c31*c34 - c25*c30
-    c36 = math.sin(boom_cyl_l_barrel_beta)
-    c37 = math.cos(boom_cyl_l_barrel_gamma)
-    c38 = c32*c37
-    c39 = c38*c36
-    c40 = c27*c37
-    c41 = -c40*c36 - c33
-    c42 = c25*c41 + c31*(-c39 + c29)
-    c43 = c29*c36
-    c44 = c33*c36
-    c45 = -c44 - c40
-    c46 = c25*c45 + (c43 - c38)*c31
-    c47 = (-c29 + c39)*v_boom_cyl_l_barrel_gamma
-    c48 = c34*v_boom_cyl_l_barrel_beta
-    c49 = (c38 - c43)*v_boom_cyl_l_barrel_alpha
-    c50 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c51 = c26*c28*c50
-    c52 = c50*c37*c36 + c25*c26*c38 - c26*c31*c40
-    c53 = c30*v_boom_cyl_l_barrel_beta
-    c54 = c41*v_boom_cyl_l_barrel_gamma
-    c55 = c45*v_boom_cyl_l_barrel_alpha
-    c56 = c49 + c48 + c47
-    c57 = c28*c36*v_boom_cyl_l_barrel_beta
-    c58 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c59 = -c53 + c54 + c55
-    c60 = -c58 + c57
-    c61 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c62 = math.cos(arm_cyl_barrel_beta)
-    c63 = math.sin(arm_cyl_barrel_alpha)
-    c64 = math.sin(arm_cyl_barrel_gamma)
-    c65 = c63*c64
-    c66 = c62*c65
-    c67 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c68 = math.cos(arm_cyl_barrel_alpha)
-    c69 = c64*c68
-    c70 = c62*c69
-    c71 = -c67*c70 - c61*c66
-    c72 = math.sin(arm_cyl_barrel_beta)
-    c73 = math.cos(arm_cyl_barrel_gamma)
-    c74 = c68*c73
-    c75 = c74*c72
-    c76 = c63*c73
-    c77 = -c76*c72 - c69
-    c78 = c61*c77 + c67*(-c75 + c65)
-    c79 = c65*c72
-    c80 = c69*c72
-    c81 = -c80 - c76
-    c82 = c61*c81 + (c79 - c74)*c67
-    c83 = (-c65 + c75)*v_arm_cyl_barrel_gamma
-    c84 = c70*v_arm_cyl_barrel_beta
-    c85 = (c74 - c79)*v_arm_cyl_barrel_alpha
-    c86 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c87 = c62*c64*c86
-    c88 = c86*c73*c72 + c61*c62*c74 - c62*c67*c76
-    c89 = c66*v_arm_cyl_barrel_beta
-    c90 = c77*v_arm_cyl_barrel_gamma
-    c91 = c81*v_arm_cyl_barrel_alpha
-    c92 = c85 + c84 + c83
-    c93 = c64*c72*v_arm_cyl_barrel_beta
-    c94 = c62*c73*v_arm_cyl_barrel_gamma
-    c95 = -c89 + c90 + c91
-    c96 = -c94 + c93
-    c97 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c98 = math.cos(bucket_cyl_barrel_beta)
-    c99 = math.sin(bucket_cyl_barrel_alpha)
-    c100 = math.sin(bucket_cyl_barrel_gamma)
-    c101 = c99*c100
-    c102 = c98*c101
-    c103 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c104 = math.cos(bucket_cyl_barrel_alpha)
-    c105 = c100*c104
-    c106 = c98*c105
-    c107 = -c103*c106 - c97*c102
-    c108 = math.sin(bucket_cyl_barrel_beta)
-    c109 = math.cos(bucket_cyl_barrel_gamma)
-    c110 = c104*c109
-    c111 = c110*c108
-    c112 = c99*c109
-    c113 = -c112*c108 - c105
-    c114 = c97*c113 + c103*(-c111 + c101)
-    c115 = c101*c108
-    c116 = c105*c108
-    c117 = -c116 - c112
-    c118 = c97*c117 + (c115 - c110)*c103
-    c119 = (-c101 + c111)*v_bucket_cyl_barrel_gamma
-    c120 = c106*v_bucket_cyl_barrel_beta
-    c121 = (c110 - c115)*v_bucket_cyl_barrel_alpha
-    c122 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c123 = c98*c100*c122
-    c124 = c122*c109*c108 + c97*c98*c110 - c98*c103*c112
-    c125 = c102*v_bucket_cyl_barrel_beta
-    c126 = c113*v_bucket_cyl_barrel_gamma
-    c127 = c117*v_bucket_cyl_barrel_alpha
-    c128 = c121 + c120 + c119
-    c129 = c100*c108*v_bucket_cyl_barrel_beta
-    c130 = c98*c109*v_bucket_cyl_barrel_gamma
-    c131 = -c125 + c126 + c127
-    c132 = -c130 + c129
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c17 + c19)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -c56*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - c60*v_boom_cyl_l_rod_z - c59*v_boom_cyl_l_rod_x - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c56 - (c42*v_boom_cyl_l_barrel_alpha + (c46 + c51)*v_boom_cyl_l_barrel_gamma + c52*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_gamma - (-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c59 - (c58 - c57)*v_boom_cyl_l_barrel_z - (c35*v_boom_cyl_l_barrel_alpha + c52*v_boom_cyl_l_barrel_gamma + (c31*c43 - c25*c44 + c51)*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_beta - (-c55 - c54 + c53)*v_boom_cyl_l_barrel_x - (-c49 - c48 - c47)*v_boom_cyl_l_barrel_y - (c46*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma + c35*v_boom_cyl_l_barrel_beta)*v_boom_cyl_l_barrel_alpha + udd1, -c92*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - c96*v_arm_cyl_rod_z - c95*v_arm_cyl_rod_x - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c92 - (c78*v_arm_cyl_barrel_alpha + (c82 + c87)*v_arm_cyl_barrel_gamma + c88*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_gamma - (-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c95 - (c94 - c93)*v_arm_cyl_barrel_z - (c71*v_arm_cyl_barrel_alpha + c88*v_arm_cyl_barrel_gamma + (c67*c79 - c61*c80 + c87)*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_beta - (-c91 - c90 + c89)*v_arm_cyl_barrel_x - (-c85 - c84 - c83)*v_arm_cyl_barrel_y - (c82*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma + c71*v_arm_cyl_barrel_beta)*v_arm_cyl_barrel_alpha + udd2, -c128*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - c132*v_bucket_cyl_rod_z - c131*v_bucket_cyl_rod_x - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c128 - (c114*v_bucket_cyl_barrel_alpha + (c118 + c123)*v_bucket_cyl_barrel_gamma + c124*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_gamma - (-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c131 - (c130 - c129)*v_bucket_cyl_barrel_z - (c107*v_bucket_cyl_barrel_alpha + c124*v_bucket_cyl_barrel_gamma + (c103*c115 - c97*c116 + c123)*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_beta - (-c127 - c126 + c125)*v_bucket_cyl_barrel_x - (-c121 - c120 - c119)*v_bucket_cyl_barrel_y - (c118*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma + c107*v_bucket_cyl_barrel_beta)*v_bucket_cyl_barrel_alpha + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_oscillation_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 

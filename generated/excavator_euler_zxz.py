@@ -3520,7 +3520,7 @@ def _joints_phi(q, p):
 
 
 def _drivers_phi_digging(q, u, p):
-    """Phi of the driver rows of case 'digging'."""
+    """Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
@@ -3548,7 +3548,7 @@ def phi_digging(q, u, p):
 
 
 def _drivers_jac_digging(q, u, p):
-    """Phi_q values of the driver rows of case 'digging'."""
+    """Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
@@ -4347,7 +4347,7 @@ def _joints_phi_joints_jac_s(q, p):
 
 
 def _drivers_phi_digging_drivers_jac_digging_s(q, u, p):
-    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_phi_bucket_toggle and drivers_jac_bucket_toggle, drivers_phi_bucket_stroke and drivers_jac_bucket_stroke, drivers_phi_bucket_near_toggle and drivers_jac_bucket_near_toggle, drivers_phi_digging_fast and drivers_jac_digging_fast, drivers_phi_digging_paced and drivers_jac_digging_paced, drivers_phi_oscillation and drivers_jac_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
@@ -4423,7 +4423,7 @@ def phi_jac_s_digging(q, u, p):
 
 
 def _drivers_nu_digging(q, u, ud, p):
-    """nu of the driver rows of case 'digging'."""
+    """nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -4443,7 +4443,7 @@ def nu_digging(q, u, ud, p):
 
 
 def _drivers_nu_digging_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -6016,7 +6016,7 @@ def _joints_gamma(q, v, p):
 
 
 def _drivers_gamma_digging(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'."""
+    """gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -7650,7 +7650,7 @@ def _joints_gamma_s(q, v, p):
 
 
 def _drivers_gamma_digging_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -8025,7 +8025,7 @@ def input_ranges_digging(span):
 
 
 def _drivers_phi_level_cut(q, u, p):
-    """Phi of the driver rows of case 'level_cut'."""
+    """Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, u1, u2, u3 = u
     upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
@@ -8048,7 +8048,7 @@ def phi_level_cut(q, u, p):
 
 
 def _drivers_jac_level_cut(q, u, p):
-    """Phi_q values of the driver rows of case 'level_cut'."""
+    """Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, _, _, u3 = u
     c0 = sin(u0)
@@ -8097,7 +8097,7 @@ def jac_level_cut(q, u, p):
 
 
 def _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p):
-    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_phi_trench_wall and drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
     u0, u1, u2, u3 = u
     upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
@@ -8141,7 +8141,7 @@ def phi_jac_s_level_cut(q, u, p):
 
 
 def _drivers_nu_level_cut(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'."""
+    """nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, _ = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -8163,7 +8163,7 @@ def nu_level_cut(q, u, ud, p):
 
 
 def _drivers_nu_level_cut_s(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, _ = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -8181,7 +8181,7 @@ def nu_s_level_cut(q, u, ud, p):
 
 
 def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'."""
+    """gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
     u0, _, _, u3 = u
@@ -8258,7 +8258,7 @@ def gamma_level_cut(q, v, u, ud, udd, p):
 
 
 def _drivers_gamma_level_cut_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
     u0, _, _, u3 = u
@@ -8409,310 +8409,43 @@ def input_ranges_level_cut(span):
     return out
 
 
-def _drivers_phi_trench_wall(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    bucket_a00 = cos(bucket_alpha)*cos(bucket_gamma) - cos(bucket_beta)*sin(bucket_alpha)*sin(bucket_gamma)
-    bucket_a02 = sin(bucket_alpha)*sin(bucket_beta)
-    bucket_a20 = sin(bucket_beta)*sin(bucket_gamma)
-    bucket_a22 = cos(bucket_beta)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x
-    out[2] = (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22
-    return out
-
-
 def phi_trench_wall(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
-
-
-def _drivers_jac_trench_wall(q, u, p):
-    """Phi_q values of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, _, _, u3 = u
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = cos(bucket_gamma)
-    c13 = sin(bucket_alpha)
-    c14 = (32/25)*c13
-    c15 = cos(bucket_alpha)
-    c16 = sin(bucket_beta)
-    c17 = cos(bucket_beta)
-    c18 = sin(bucket_gamma)
-    c19 = (32/25)*c15*c18
-    c20 = c13*c17
-    c21 = sin(bucket_beta)
-    c22 = cos(u3)
-    c23 = sin(bucket_beta)
-    out = _zeros(12, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = 1
-    out[4] = (403/500)*c16*c15 - c17*c19 - c12*c14
-    out[5] = c14*c16*c18 + (403/500)*c20
-    out[6] = -32/25*c12*c20 - c19
-    out[7] = 1
-    out[8] = (32/25)*sin(bucket_gamma)*cos(bucket_beta) - 403/500*c21
-    out[9] = (32/25)*c21*cos(bucket_gamma)
-    out[10] = -c22*c23*cos(bucket_alpha)
-    out[11] = -c22*sin(bucket_alpha)*cos(bucket_beta) - c23*sin(u3)
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
 def jac_trench_wall(q, u, p):
     """Output 'jac' (425 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
-
-
-def _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'.; Phi_q values of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    bucket_a00 = math.cos(bucket_alpha)*math.cos(bucket_gamma) - math.cos(bucket_beta)*math.sin(bucket_alpha)*math.sin(bucket_gamma)
-    bucket_a02 = math.sin(bucket_alpha)*math.sin(bucket_beta)
-    bucket_a20 = math.sin(bucket_beta)*math.sin(bucket_gamma)
-    bucket_a22 = math.cos(bucket_beta)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = math.cos(bucket_gamma)
-    d13 = math.sin(bucket_alpha)
-    d14 = (32/25)*d13
-    d15 = math.cos(bucket_alpha)
-    d16 = math.sin(bucket_beta)
-    d17 = math.cos(bucket_beta)
-    d18 = math.sin(bucket_gamma)
-    d19 = (32/25)*d15*d18
-    d20 = d13*d17
-    d21 = math.sin(bucket_beta)
-    d22 = math.cos(u3)
-    d23 = math.sin(bucket_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x, (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z, -math.cos(u3)*bucket_a02 + math.sin(u3)*bucket_a22], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), 1.0, (403/500)*d16*d15 - d17*d19 - d12*d14, d14*d16*d18 + (403/500)*d20, -32/25*d12*d20 - d19, 1.0, (32/25)*math.sin(bucket_gamma)*math.cos(bucket_beta) - 403/500*d21, (32/25)*d21*math.cos(bucket_gamma), -d22*d23*math.cos(bucket_alpha), -d22*math.sin(bucket_alpha)*math.cos(bucket_beta) - d23*math.sin(u3)]
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
 def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_trench_wall(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, _ = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    bucket_a02 = sin(bucket_alpha)*sin(bucket_beta)
-    bucket_a22 = cos(bucket_beta)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3
-    return out
 
 
 def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_trench_wall(q, u, ud, p))
-
-
-def _drivers_nu_trench_wall_s(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, _ = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    bucket_a02 = math.sin(bucket_alpha)*math.sin(bucket_beta)
-    bucket_a22 = math.cos(bucket_beta)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, -(math.cos(u3)*bucket_a22 + math.sin(u3)*bucket_a02)*ud3]
+    return _join(80, _drivers_nu_level_cut(q, u, ud, p))
 
 
 def nu_s_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_trench_wall_s(q, u, ud, p)
+    s1_0 = _drivers_nu_level_cut_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    bucket_a02 = sin(bucket_alpha)*sin(bucket_beta)
-    bucket_a22 = cos(bucket_beta)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = cos(bucket_alpha)
-    c26 = (32/25)*cos(bucket_gamma)
-    c27 = -c25*c26
-    c28 = sin(bucket_alpha)
-    c29 = sin(bucket_beta)
-    c30 = c29*c28
-    c31 = cos(bucket_beta)
-    c32 = (32/25)*sin(bucket_gamma)
-    c33 = c28*c32
-    c34 = c31*c33
-    c35 = c34 - 403/500*c30
-    c36 = c25*c31
-    c37 = c25*c29*c32 + (403/500)*c36
-    c38 = -c26*c36 + c33
-    c39 = c26*c30
-    c40 = cos(bucket_beta)
-    c41 = (32/25)*sin(bucket_gamma)*sin(bucket_beta)
-    c42 = (32/25)*c40*cos(bucket_gamma)
-    c43 = sin(u3)
-    c44 = cos(u3)
-    c45 = cos(bucket_beta)
-    c46 = cos(bucket_alpha)
-    c47 = c45*c44*c46
-    c48 = sin(bucket_alpha)
-    c49 = sin(bucket_beta)
-    c50 = c44*c49
-    c51 = c48*c50
-    c52 = c43*c45
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -((c34 + c27)*v_bucket_gamma + c39*v_bucket_beta + c38*v_bucket_alpha)*v_bucket_gamma - v_bucket_beta*(c39*v_bucket_gamma + c35*v_bucket_beta + c37*v_bucket_alpha) - (c38*v_bucket_gamma + c37*v_bucket_beta + (c35 + c27)*v_bucket_alpha)*v_bucket_alpha + udd1
-    out[2] = -(-c41*v_bucket_gamma + c42*v_bucket_beta)*v_bucket_gamma - (c42*v_bucket_gamma + (-c41 - 403/500*c40)*v_bucket_beta)*v_bucket_beta + udd2
-    out[3] = -2*ud3*(c43*c46*c49*v_bucket_alpha + v_bucket_beta*(c48*c52 - c50)) - v_bucket_beta*(-c47*v_bucket_alpha + (c51 - c52)*v_bucket_beta) - (-c43*bucket_a22 + c44*bucket_a02)*ud3**2 - (c51*v_bucket_alpha - c47*v_bucket_beta)*v_bucket_alpha - (c44*bucket_a22 + c43*bucket_a02)*udd3
-    return out
 
 
 def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    bucket_a02 = math.sin(bucket_alpha)*math.sin(bucket_beta)
-    bucket_a22 = math.cos(bucket_beta)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.cos(bucket_alpha)
-    c26 = (32/25)*math.cos(bucket_gamma)
-    c27 = -c25*c26
-    c28 = math.sin(bucket_alpha)
-    c29 = math.sin(bucket_beta)
-    c30 = c29*c28
-    c31 = math.cos(bucket_beta)
-    c32 = (32/25)*math.sin(bucket_gamma)
-    c33 = c28*c32
-    c34 = c31*c33
-    c35 = c34 - 403/500*c30
-    c36 = c25*c31
-    c37 = c25*c29*c32 + (403/500)*c36
-    c38 = -c26*c36 + c33
-    c39 = c26*c30
-    c40 = math.cos(bucket_beta)
-    c41 = (32/25)*math.sin(bucket_gamma)*math.sin(bucket_beta)
-    c42 = (32/25)*c40*math.cos(bucket_gamma)
-    c43 = math.sin(u3)
-    c44 = math.cos(u3)
-    c45 = math.cos(bucket_beta)
-    c46 = math.cos(bucket_alpha)
-    c47 = c45*c44*c46
-    c48 = math.sin(bucket_alpha)
-    c49 = math.sin(bucket_beta)
-    c50 = c44*c49
-    c51 = c48*c50
-    c52 = c43*c45
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -((c34 + c27)*v_bucket_gamma + c39*v_bucket_beta + c38*v_bucket_alpha)*v_bucket_gamma - v_bucket_beta*(c39*v_bucket_gamma + c35*v_bucket_beta + c37*v_bucket_alpha) - (c38*v_bucket_gamma + c37*v_bucket_beta + (c35 + c27)*v_bucket_alpha)*v_bucket_alpha + udd1, -(-c41*v_bucket_gamma + c42*v_bucket_beta)*v_bucket_gamma - (c42*v_bucket_gamma + (-c41 - 403/500*c40)*v_bucket_beta)*v_bucket_beta + udd2, -2.0*ud3*(c43*c46*c49*v_bucket_alpha + v_bucket_beta*(c48*c52 - c50)) - v_bucket_beta*(-c47*v_bucket_alpha + (c51 - c52)*v_bucket_beta) - (-c43*bucket_a22 + c44*bucket_a02)*(ud3*ud3) - (c51*v_bucket_alpha - c47*v_bucket_beta)*v_bucket_alpha - (c44*bucket_a22 + c43*bucket_a02)*udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
 def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_level_cut_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -8794,553 +8527,43 @@ def input_ranges_trench_wall(span):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = cos(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = sin(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = cos(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = sin(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = cos(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = sin(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c20*c19*c24 + c12*c24*c22 + c16*c18*c23
-    out[8] = c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c33*c32*c37 + c25*c37*c35 + c29*c31*c36
-    out[17] = c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c46*c45*c50 + c38*c50*c48 + c42*c44*c49
-    out[26] = c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_toggle(q, u, p):
     """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'.; Phi_q values of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.cos(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.sin(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.cos(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.sin(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.cos(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.sin(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d20*d19*d24 + d12*d24*d22 + d16*d18*d23, d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d33*d32*d37 + d25*d37*d35 + d29*d31*d36, d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d46*d45*d50 + d38*d50*d48 + d42*d44*d49, d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = sin(boom_cyl_l_barrel_alpha)
-    c26 = cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = cos(boom_cyl_l_barrel_beta)
-    c29 = cos(boom_cyl_l_barrel_alpha)
-    c30 = sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = sin(arm_cyl_barrel_alpha)
-    c62 = cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = cos(arm_cyl_barrel_beta)
-    c65 = cos(arm_cyl_barrel_alpha)
-    c66 = sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = sin(bucket_cyl_barrel_alpha)
-    c98 = cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = cos(bucket_cyl_barrel_beta)
-    c101 = cos(bucket_cyl_barrel_alpha)
-    c102 = sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.sin(boom_cyl_l_barrel_alpha)
-    c26 = math.cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = math.cos(boom_cyl_l_barrel_beta)
-    c29 = math.cos(boom_cyl_l_barrel_alpha)
-    c30 = math.sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = math.sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = math.sin(arm_cyl_barrel_alpha)
-    c62 = math.cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = math.cos(arm_cyl_barrel_beta)
-    c65 = math.cos(arm_cyl_barrel_alpha)
-    c66 = math.sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = math.sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = math.sin(bucket_cyl_barrel_alpha)
-    c98 = math.cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = math.cos(bucket_cyl_barrel_beta)
-    c101 = math.cos(bucket_cyl_barrel_alpha)
-    c102 = math.sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = math.sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -9392,553 +8615,43 @@ def input_ranges_bucket_toggle(span):
     return out
 
 
-def _drivers_phi_bucket_stroke(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_stroke(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
-
-
-def _drivers_jac_bucket_stroke(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = cos(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = sin(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = cos(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = sin(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = cos(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = sin(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c20*c19*c24 + c12*c24*c22 + c16*c18*c23
-    out[8] = c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c33*c32*c37 + c25*c37*c35 + c29*c31*c36
-    out[17] = c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c46*c45*c50 + c38*c50*c48 + c42*c44*c49
-    out[26] = c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_stroke(q, u, p):
     """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
-
-
-def _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'.; Phi_q values of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.cos(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.sin(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.cos(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.sin(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.cos(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.sin(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d20*d19*d24 + d12*d24*d22 + d16*d18*d23, d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d33*d32*d37 + d25*d37*d35 + d29*d31*d36, d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d46*d45*d50 + d38*d50*d48 + d42*d44*d49, d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_stroke(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_stroke(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_stroke(q, u, ud, p))
-
-
-def _drivers_nu_bucket_stroke_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_stroke_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = sin(boom_cyl_l_barrel_alpha)
-    c26 = cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = cos(boom_cyl_l_barrel_beta)
-    c29 = cos(boom_cyl_l_barrel_alpha)
-    c30 = sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = sin(arm_cyl_barrel_alpha)
-    c62 = cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = cos(arm_cyl_barrel_beta)
-    c65 = cos(arm_cyl_barrel_alpha)
-    c66 = sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = sin(bucket_cyl_barrel_alpha)
-    c98 = cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = cos(bucket_cyl_barrel_beta)
-    c101 = cos(bucket_cyl_barrel_alpha)
-    c102 = sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.sin(boom_cyl_l_barrel_alpha)
-    c26 = math.cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = math.cos(boom_cyl_l_barrel_beta)
-    c29 = math.cos(boom_cyl_l_barrel_alpha)
-    c30 = math.sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = math.sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = math.sin(arm_cyl_barrel_alpha)
-    c62 = math.cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = math.cos(arm_cyl_barrel_beta)
-    c65 = math.cos(arm_cyl_barrel_alpha)
-    c66 = math.sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = math.sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = math.sin(bucket_cyl_barrel_alpha)
-    c98 = math.cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = math.cos(bucket_cyl_barrel_beta)
-    c101 = math.cos(bucket_cyl_barrel_alpha)
-    c102 = math.sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = math.sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -9990,553 +8703,43 @@ def input_ranges_bucket_stroke(span):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_bucket_near_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_near_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = cos(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = sin(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = cos(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = sin(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = cos(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = sin(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c20*c19*c24 + c12*c24*c22 + c16*c18*c23
-    out[8] = c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c33*c32*c37 + c25*c37*c35 + c29*c31*c36
-    out[17] = c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c46*c45*c50 + c38*c50*c48 + c42*c44*c49
-    out[26] = c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_near_toggle(q, u, p):
     """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'.; Phi_q values of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.cos(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.sin(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.cos(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.sin(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.cos(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.sin(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d20*d19*d24 + d12*d24*d22 + d16*d18*d23, d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d33*d32*d37 + d25*d37*d35 + d29*d31*d36, d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d46*d45*d50 + d38*d50*d48 + d42*d44*d49, d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_near_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_near_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_near_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_near_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = sin(boom_cyl_l_barrel_alpha)
-    c26 = cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = cos(boom_cyl_l_barrel_beta)
-    c29 = cos(boom_cyl_l_barrel_alpha)
-    c30 = sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = sin(arm_cyl_barrel_alpha)
-    c62 = cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = cos(arm_cyl_barrel_beta)
-    c65 = cos(arm_cyl_barrel_alpha)
-    c66 = sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = sin(bucket_cyl_barrel_alpha)
-    c98 = cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = cos(bucket_cyl_barrel_beta)
-    c101 = cos(bucket_cyl_barrel_alpha)
-    c102 = sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.sin(boom_cyl_l_barrel_alpha)
-    c26 = math.cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = math.cos(boom_cyl_l_barrel_beta)
-    c29 = math.cos(boom_cyl_l_barrel_alpha)
-    c30 = math.sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = math.sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = math.sin(arm_cyl_barrel_alpha)
-    c62 = math.cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = math.cos(arm_cyl_barrel_beta)
-    c65 = math.cos(arm_cyl_barrel_alpha)
-    c66 = math.sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = math.sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = math.sin(bucket_cyl_barrel_alpha)
-    c98 = math.cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = math.cos(bucket_cyl_barrel_beta)
-    c101 = math.cos(bucket_cyl_barrel_alpha)
-    c102 = math.sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = math.sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -10599,553 +8802,43 @@ def input_ranges_bucket_near_toggle(span):
     return out
 
 
-def _drivers_phi_digging_fast(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_fast(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_fast(q, u, p))
-
-
-def _drivers_jac_digging_fast(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = cos(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = sin(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = cos(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = sin(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = cos(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = sin(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c20*c19*c24 + c12*c24*c22 + c16*c18*c23
-    out[8] = c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c33*c32*c37 + c25*c37*c35 + c29*c31*c36
-    out[17] = c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c46*c45*c50 + c38*c50*c48 + c42*c44*c49
-    out[26] = c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_fast(q, u, p):
     """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_fast(q, u, p))
-
-
-def _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'.; Phi_q values of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.cos(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.sin(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.cos(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.sin(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.cos(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.sin(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d20*d19*d24 + d12*d24*d22 + d16*d18*d23, d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d33*d32*d37 + d25*d37*d35 + d29*d31*d36, d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d46*d45*d50 + d38*d50*d48 + d42*d44*d49, d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_fast(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_fast(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_fast(q, u, ud, p))
-
-
-def _drivers_nu_digging_fast_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_fast_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_fast(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = sin(boom_cyl_l_barrel_alpha)
-    c26 = cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = cos(boom_cyl_l_barrel_beta)
-    c29 = cos(boom_cyl_l_barrel_alpha)
-    c30 = sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = sin(arm_cyl_barrel_alpha)
-    c62 = cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = cos(arm_cyl_barrel_beta)
-    c65 = cos(arm_cyl_barrel_alpha)
-    c66 = sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = sin(bucket_cyl_barrel_alpha)
-    c98 = cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = cos(bucket_cyl_barrel_beta)
-    c101 = cos(bucket_cyl_barrel_alpha)
-    c102 = sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_fast(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.sin(boom_cyl_l_barrel_alpha)
-    c26 = math.cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = math.cos(boom_cyl_l_barrel_beta)
-    c29 = math.cos(boom_cyl_l_barrel_alpha)
-    c30 = math.sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = math.sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = math.sin(arm_cyl_barrel_alpha)
-    c62 = math.cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = math.cos(arm_cyl_barrel_beta)
-    c65 = math.cos(arm_cyl_barrel_alpha)
-    c66 = math.sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = math.sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = math.sin(bucket_cyl_barrel_alpha)
-    c98 = math.cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = math.cos(bucket_cyl_barrel_beta)
-    c101 = math.cos(bucket_cyl_barrel_alpha)
-    c102 = math.sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = math.sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -11372,553 +9065,43 @@ def input_ranges_digging_fast(span):
     return out
 
 
-def _drivers_phi_digging_paced(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_digging_paced(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
-
-
-def _drivers_jac_digging_paced(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = cos(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = sin(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = cos(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = sin(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = cos(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = sin(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c20*c19*c24 + c12*c24*c22 + c16*c18*c23
-    out[8] = c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c33*c32*c37 + c25*c37*c35 + c29*c31*c36
-    out[17] = c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c46*c45*c50 + c38*c50*c48 + c42*c44*c49
-    out[26] = c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_paced(q, u, p):
     """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
-
-
-def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.cos(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.sin(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.cos(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.sin(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.cos(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.sin(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d20*d19*d24 + d12*d24*d22 + d16*d18*d23, d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d33*d32*d37 + d25*d37*d35 + d29*d31*d36, d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d46*d45*d50 + d38*d50*d48 + d42*d44*d49, d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_paced(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_paced(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
-
-
-def _drivers_nu_digging_paced_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = sin(boom_cyl_l_barrel_alpha)
-    c26 = cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = cos(boom_cyl_l_barrel_beta)
-    c29 = cos(boom_cyl_l_barrel_alpha)
-    c30 = sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = sin(arm_cyl_barrel_alpha)
-    c62 = cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = cos(arm_cyl_barrel_beta)
-    c65 = cos(arm_cyl_barrel_alpha)
-    c66 = sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = sin(bucket_cyl_barrel_alpha)
-    c98 = cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = cos(bucket_cyl_barrel_beta)
-    c101 = cos(bucket_cyl_barrel_alpha)
-    c102 = sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.sin(boom_cyl_l_barrel_alpha)
-    c26 = math.cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = math.cos(boom_cyl_l_barrel_beta)
-    c29 = math.cos(boom_cyl_l_barrel_alpha)
-    c30 = math.sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = math.sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = math.sin(arm_cyl_barrel_alpha)
-    c62 = math.cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = math.cos(arm_cyl_barrel_beta)
-    c65 = math.cos(arm_cyl_barrel_alpha)
-    c66 = math.sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = math.sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = math.sin(bucket_cyl_barrel_alpha)
-    c98 = math.cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = math.cos(bucket_cyl_barrel_beta)
-    c101 = math.cos(bucket_cyl_barrel_alpha)
-    c102 = math.sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = math.sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -12145,553 +9328,43 @@ def input_ranges_digging_paced(span):
     return out
 
 
-def _drivers_phi_oscillation(q, u, p):
-    """Phi of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -cos(u0)*upper_a10 + sin(u0)*upper_a00
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
-
-
 def phi_oscillation(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_phi(q, p), _drivers_phi_oscillation(q, u, p))
-
-
-def _drivers_jac_oscillation(q, u, p):
-    """Phi_q values of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
-    c0 = sin(u0)
-    c1 = sin(upper_alpha)
-    c2 = cos(upper_gamma)
-    c3 = c2*c1
-    c4 = cos(upper_beta)
-    c5 = cos(upper_alpha)
-    c6 = sin(upper_gamma)
-    c7 = c6*c5
-    c8 = cos(u0)
-    c9 = c2*c5
-    c10 = c1*c6
-    c11 = sin(upper_beta)
-    c12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c13 = sin(boom_cyl_l_barrel_alpha)
-    c14 = cos(boom_cyl_l_barrel_gamma)
-    c15 = c14*c13
-    c16 = cos(boom_cyl_l_barrel_beta)
-    c17 = cos(boom_cyl_l_barrel_alpha)
-    c18 = sin(boom_cyl_l_barrel_gamma)
-    c19 = c18*c17
-    c20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c21 = c14*c17
-    c22 = c13*c18
-    c23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c24 = sin(boom_cyl_l_barrel_beta)
-    c25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c26 = sin(arm_cyl_barrel_alpha)
-    c27 = cos(arm_cyl_barrel_gamma)
-    c28 = c27*c26
-    c29 = cos(arm_cyl_barrel_beta)
-    c30 = cos(arm_cyl_barrel_alpha)
-    c31 = sin(arm_cyl_barrel_gamma)
-    c32 = c31*c30
-    c33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c34 = c27*c30
-    c35 = c26*c31
-    c36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c37 = sin(arm_cyl_barrel_beta)
-    c38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c39 = sin(bucket_cyl_barrel_alpha)
-    c40 = cos(bucket_cyl_barrel_gamma)
-    c41 = c40*c39
-    c42 = cos(bucket_cyl_barrel_beta)
-    c43 = cos(bucket_cyl_barrel_alpha)
-    c44 = sin(bucket_cyl_barrel_gamma)
-    c45 = c44*c43
-    c46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c47 = c40*c43
-    c48 = c39*c44
-    c49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c50 = sin(bucket_cyl_barrel_beta)
-    out = _zeros(30, q, u)
-    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
-    out[1] = c0*c11*c10 + c8*c7*c11
-    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = c20*(-c16*c22 + c21) + c12*(-c16*c19 - c15)
-    out[7] = -c20*c19*c24 + c12*c24*c22 + c16*c18*c23
-    out[8] = c14*c24*c23 + c20*(c16*c21 - c22) + c12*(-c16*c15 - c19)
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = c33*(-c29*c35 + c34) + c25*(-c29*c32 - c28)
-    out[16] = -c33*c32*c37 + c25*c37*c35 + c29*c31*c36
-    out[17] = c27*c37*c36 + c33*(c29*c34 - c35) + c25*(-c29*c28 - c32)
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = c46*(-c42*c48 + c47) + c38*(-c42*c45 - c41)
-    out[25] = -c46*c45*c50 + c38*c50*c48 + c42*c44*c49
-    out[26] = c40*c50*c49 + c46*(c42*c47 - c48) + c38*(-c42*c41 - c45)
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_oscillation(q, u, p):
     """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_jac(q, p), _drivers_jac_oscillation(q, u, p))
-
-
-def _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p):
-    """Phi of the driver rows of case 'oscillation'.; Phi_q values of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
-    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
-    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
-    d0 = math.sin(u0)
-    d1 = math.sin(upper_alpha)
-    d2 = math.cos(upper_gamma)
-    d3 = d2*d1
-    d4 = math.cos(upper_beta)
-    d5 = math.cos(upper_alpha)
-    d6 = math.sin(upper_gamma)
-    d7 = d6*d5
-    d8 = math.cos(u0)
-    d9 = d2*d5
-    d10 = d1*d6
-    d11 = math.sin(upper_beta)
-    d12 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d13 = math.sin(boom_cyl_l_barrel_alpha)
-    d14 = math.cos(boom_cyl_l_barrel_gamma)
-    d15 = d14*d13
-    d16 = math.cos(boom_cyl_l_barrel_beta)
-    d17 = math.cos(boom_cyl_l_barrel_alpha)
-    d18 = math.sin(boom_cyl_l_barrel_gamma)
-    d19 = d18*d17
-    d20 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d21 = d14*d17
-    d22 = d13*d18
-    d23 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d24 = math.sin(boom_cyl_l_barrel_beta)
-    d25 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d26 = math.sin(arm_cyl_barrel_alpha)
-    d27 = math.cos(arm_cyl_barrel_gamma)
-    d28 = d27*d26
-    d29 = math.cos(arm_cyl_barrel_beta)
-    d30 = math.cos(arm_cyl_barrel_alpha)
-    d31 = math.sin(arm_cyl_barrel_gamma)
-    d32 = d31*d30
-    d33 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d34 = d27*d30
-    d35 = d26*d31
-    d36 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d37 = math.sin(arm_cyl_barrel_beta)
-    d38 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d39 = math.sin(bucket_cyl_barrel_alpha)
-    d40 = math.cos(bucket_cyl_barrel_gamma)
-    d41 = d40*d39
-    d42 = math.cos(bucket_cyl_barrel_beta)
-    d43 = math.cos(bucket_cyl_barrel_alpha)
-    d44 = math.sin(bucket_cyl_barrel_gamma)
-    d45 = d44*d43
-    d46 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d47 = d40*d43
-    d48 = d39*d44
-    d49 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d50 = math.sin(bucket_cyl_barrel_beta)
-    return [-math.cos(u0)*upper_a10 + math.sin(u0)*upper_a00, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d20*(-d16*d22 + d21) + d12*(-d16*d19 - d15), -d20*d19*d24 + d12*d24*d22 + d16*d18*d23, d14*d24*d23 + d20*(d16*d21 - d22) + d12*(-d16*d15 - d19), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d33*(-d29*d35 + d34) + d25*(-d29*d32 - d28), -d33*d32*d37 + d25*d37*d35 + d29*d31*d36, d27*d37*d36 + d33*(d29*d34 - d35) + d25*(-d29*d28 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d46*(-d42*d48 + d47) + d38*(-d42*d45 - d41), -d46*d45*d50 + d38*d50*d48 + d42*d44*d49, d40*d50*d49 + d46*(d42*d47 - d48) + d38*(-d42*d41 - d45), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_oscillation(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_oscillation(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    out = _zeros(4, q, u)
-    out[0] = -(sin(u0)*upper_a10 + cos(u0)*upper_a00)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_oscillation(q, u, ud, p))
-
-
-def _drivers_nu_oscillation_s(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    return [-(math.sin(u0)*upper_a10 + math.cos(u0)*upper_a00)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_oscillation_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_oscillation(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'."""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
-    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = cos(upper_alpha)
-    c3 = cos(upper_gamma)
-    c4 = c2*c3
-    c5 = cos(upper_beta)
-    c6 = sin(upper_alpha)
-    c7 = sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = sin(boom_cyl_l_barrel_alpha)
-    c26 = cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = cos(boom_cyl_l_barrel_beta)
-    c29 = cos(boom_cyl_l_barrel_alpha)
-    c30 = sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = sin(arm_cyl_barrel_alpha)
-    c62 = cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = cos(arm_cyl_barrel_beta)
-    c65 = cos(arm_cyl_barrel_alpha)
-    c66 = sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = sin(bucket_cyl_barrel_alpha)
-    c98 = cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = cos(bucket_cyl_barrel_beta)
-    c101 = cos(bucket_cyl_barrel_alpha)
-    c102 = sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*ud0**2 - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_oscillation(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_oscillation_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
-    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
-    c0 = math.cos(u0)
-    c1 = math.sin(u0)
-    c2 = math.cos(upper_alpha)
-    c3 = math.cos(upper_gamma)
-    c4 = c2*c3
-    c5 = math.cos(upper_beta)
-    c6 = math.sin(upper_alpha)
-    c7 = math.sin(upper_gamma)
-    c8 = c6*c7
-    c9 = c5*c8
-    c10 = c3*c6
-    c11 = c2*c7
-    c12 = c5*c11
-    c13 = (-c12 - c10)*c0
-    c14 = -c13 + (c9 - c4)*c1
-    c15 = math.sin(upper_beta)
-    c16 = c0*c15
-    c17 = c8*c16
-    c18 = c1*c15
-    c19 = c11*c18
-    c20 = c19 - c17
-    c21 = c4*c5
-    c22 = c0*(-c5*c10 - c11)
-    c23 = -c22 + c1*(-c21 + c8)
-    c24 = c4*c16 + c10*c18
-    c25 = math.sin(boom_cyl_l_barrel_alpha)
-    c26 = math.cos(boom_cyl_l_barrel_gamma)
-    c27 = c25*c26
-    c28 = math.cos(boom_cyl_l_barrel_beta)
-    c29 = math.cos(boom_cyl_l_barrel_alpha)
-    c30 = math.sin(boom_cyl_l_barrel_gamma)
-    c31 = c29*c30
-    c32 = c28*c31
-    c33 = -c32 - c27
-    c34 = c33*v_boom_cyl_l_barrel_alpha
-    c35 = -c27*c28 - c31
-    c36 = c35*v_boom_cyl_l_barrel_gamma
-    c37 = math.sin(boom_cyl_l_barrel_beta)
-    c38 = c25*c30
-    c39 = c38*c37
-    c40 = c39*v_boom_cyl_l_barrel_beta
-    c41 = c40 + c36 + c34
-    c42 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c43 = c26*c29
-    c44 = c28*c38
-    c45 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c46 = c33*c45 + (c44 - c43)*c42
-    c47 = c37*c42
-    c48 = c45*c39 + c31*c47
-    c49 = c28*c43
-    c50 = c45*c35 + (-c49 + c38)*c42
-    c51 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c52 = -c30*c51*c37
-    c53 = c26*c28*c51 - c45*c37*c43 + c27*c47
-    c54 = (-c44 + c43)*v_boom_cyl_l_barrel_alpha
-    c55 = c31*c37*v_boom_cyl_l_barrel_beta
-    c56 = (c49 - c38)*v_boom_cyl_l_barrel_gamma
-    c57 = -c55 + c56 + c54
-    c58 = c28*c30*v_boom_cyl_l_barrel_beta
-    c59 = c26*c37*v_boom_cyl_l_barrel_gamma
-    c60 = c59 + c58
-    c61 = math.sin(arm_cyl_barrel_alpha)
-    c62 = math.cos(arm_cyl_barrel_gamma)
-    c63 = c61*c62
-    c64 = math.cos(arm_cyl_barrel_beta)
-    c65 = math.cos(arm_cyl_barrel_alpha)
-    c66 = math.sin(arm_cyl_barrel_gamma)
-    c67 = c65*c66
-    c68 = c64*c67
-    c69 = -c68 - c63
-    c70 = c69*v_arm_cyl_barrel_alpha
-    c71 = -c63*c64 - c67
-    c72 = c71*v_arm_cyl_barrel_gamma
-    c73 = math.sin(arm_cyl_barrel_beta)
-    c74 = c61*c66
-    c75 = c74*c73
-    c76 = c75*v_arm_cyl_barrel_beta
-    c77 = c76 + c72 + c70
-    c78 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c79 = c62*c65
-    c80 = c64*c74
-    c81 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c82 = c69*c81 + (c80 - c79)*c78
-    c83 = c73*c78
-    c84 = c81*c75 + c67*c83
-    c85 = c64*c79
-    c86 = c81*c71 + (-c85 + c74)*c78
-    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c88 = -c66*c87*c73
-    c89 = c62*c64*c87 - c81*c73*c79 + c63*c83
-    c90 = (-c80 + c79)*v_arm_cyl_barrel_alpha
-    c91 = c67*c73*v_arm_cyl_barrel_beta
-    c92 = (c85 - c74)*v_arm_cyl_barrel_gamma
-    c93 = -c91 + c92 + c90
-    c94 = c64*c66*v_arm_cyl_barrel_beta
-    c95 = c62*c73*v_arm_cyl_barrel_gamma
-    c96 = c95 + c94
-    c97 = math.sin(bucket_cyl_barrel_alpha)
-    c98 = math.cos(bucket_cyl_barrel_gamma)
-    c99 = c97*c98
-    c100 = math.cos(bucket_cyl_barrel_beta)
-    c101 = math.cos(bucket_cyl_barrel_alpha)
-    c102 = math.sin(bucket_cyl_barrel_gamma)
-    c103 = c101*c102
-    c104 = c100*c103
-    c105 = -c104 - c99
-    c106 = c105*v_bucket_cyl_barrel_alpha
-    c107 = -c99*c100 - c103
-    c108 = c107*v_bucket_cyl_barrel_gamma
-    c109 = math.sin(bucket_cyl_barrel_beta)
-    c110 = c97*c102
-    c111 = c110*c109
-    c112 = c111*v_bucket_cyl_barrel_beta
-    c113 = c112 + c108 + c106
-    c114 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c115 = c98*c101
-    c116 = c100*c110
-    c117 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c118 = c105*c117 + (c116 - c115)*c114
-    c119 = c109*c114
-    c120 = c117*c111 + c103*c119
-    c121 = c100*c115
-    c122 = c117*c107 + (-c121 + c110)*c114
-    c123 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c124 = -c102*c123*c109
-    c125 = c98*c100*c123 - c117*c109*c115 + c99*c119
-    c126 = (-c116 + c115)*v_bucket_cyl_barrel_alpha
-    c127 = c103*c109*v_bucket_cyl_barrel_beta
-    c128 = (c121 - c110)*v_bucket_cyl_barrel_gamma
-    c129 = -c127 + c128 + c126
-    c130 = c100*c102*v_bucket_cyl_barrel_beta
-    c131 = c98*c109*v_bucket_cyl_barrel_gamma
-    c132 = c131 + c130
-    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_upper_gamma + (-c19 + c17)*v_upper_beta + (c13 + (-c9 + c4)*c1)*v_upper_alpha) - (-c1*upper_a00 + c0*upper_a10)*(ud0*ud0) - (c14*v_upper_gamma + c24*v_upper_beta + c23*v_upper_alpha)*v_upper_gamma - (c23*v_upper_gamma + c20*v_upper_beta + c14*v_upper_alpha)*v_upper_alpha - v_upper_beta*(c24*v_upper_gamma + (c1*c9 + c0*c12)*v_upper_beta + c20*v_upper_alpha) - (c1*upper_a10 + c0*upper_a00)*udd0, -(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x)*c41 - (-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y)*c57 - c60*v_boom_cyl_l_rod_z - (-c59 - c58)*v_boom_cyl_l_barrel_z - c57*v_boom_cyl_l_rod_y - (-c56 + c55 - c54)*v_boom_cyl_l_barrel_y - (-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z)*c60 - ((c46 + c52)*v_boom_cyl_l_barrel_gamma + c53*v_boom_cyl_l_barrel_beta + c50*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_gamma - v_boom_cyl_l_barrel_beta*(c53*v_boom_cyl_l_barrel_gamma + (-c32*c45 + c44*c42 + c52)*v_boom_cyl_l_barrel_beta + c48*v_boom_cyl_l_barrel_alpha) - (c50*v_boom_cyl_l_barrel_gamma + c48*v_boom_cyl_l_barrel_beta + c46*v_boom_cyl_l_barrel_alpha)*v_boom_cyl_l_barrel_alpha - (-c40 - c36 - c34)*v_boom_cyl_l_barrel_x - c41*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x)*c77 - (-v_arm_cyl_barrel_y + v_arm_cyl_rod_y)*c93 - c96*v_arm_cyl_rod_z - (-c95 - c94)*v_arm_cyl_barrel_z - c93*v_arm_cyl_rod_y - (-c92 + c91 - c90)*v_arm_cyl_barrel_y - (-v_arm_cyl_barrel_z + v_arm_cyl_rod_z)*c96 - ((c82 + c88)*v_arm_cyl_barrel_gamma + c89*v_arm_cyl_barrel_beta + c86*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_gamma - v_arm_cyl_barrel_beta*(c89*v_arm_cyl_barrel_gamma + (-c68*c81 + c80*c78 + c88)*v_arm_cyl_barrel_beta + c84*v_arm_cyl_barrel_alpha) - (c86*v_arm_cyl_barrel_gamma + c84*v_arm_cyl_barrel_beta + c82*v_arm_cyl_barrel_alpha)*v_arm_cyl_barrel_alpha - (-c76 - c72 - c70)*v_arm_cyl_barrel_x - c77*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x)*c113 - (-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y)*c129 - c132*v_bucket_cyl_rod_z - (-c131 - c130)*v_bucket_cyl_barrel_z - c129*v_bucket_cyl_rod_y - (-c128 + c127 - c126)*v_bucket_cyl_barrel_y - (-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z)*c132 - ((c118 + c124)*v_bucket_cyl_barrel_gamma + c125*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_gamma - v_bucket_cyl_barrel_beta*(c125*v_bucket_cyl_barrel_gamma + (-c104*c117 + c116*c114 + c124)*v_bucket_cyl_barrel_beta + c120*v_bucket_cyl_barrel_alpha) - (c122*v_bucket_cyl_barrel_gamma + c120*v_bucket_cyl_barrel_beta + c118*v_bucket_cyl_barrel_alpha)*v_bucket_cyl_barrel_alpha - (-c112 - c108 - c106)*v_bucket_cyl_barrel_x - c113*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_oscillation_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 

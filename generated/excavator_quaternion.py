@@ -3229,7 +3229,7 @@ def _joints_phi(q, p):
 
 
 def _drivers_phi_digging(q, u, p):
-    """Phi of the driver rows of case 'digging'."""
+    """Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text)."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
@@ -3256,7 +3256,7 @@ def phi_digging(q, u, p):
 
 
 def _drivers_jac_digging(q, u, p):
-    """Phi_q values of the driver rows of case 'digging'."""
+    """Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
@@ -3738,7 +3738,7 @@ def _joints_phi_joints_jac_s(q, p):
 
 
 def _drivers_phi_digging_drivers_jac_digging_s(q, u, p):
-    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'digging'.; Phi_q values of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_phi_bucket_toggle and drivers_jac_bucket_toggle, drivers_phi_bucket_stroke and drivers_jac_bucket_stroke, drivers_phi_bucket_near_toggle and drivers_jac_bucket_near_toggle, drivers_phi_digging_fast and drivers_jac_digging_fast, drivers_phi_digging_paced and drivers_jac_digging_paced, drivers_phi_oscillation and drivers_jac_oscillation (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
     boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
@@ -3774,7 +3774,7 @@ def phi_jac_s_digging(q, u, p):
 
 
 def _drivers_nu_digging(q, u, ud, p):
-    """nu of the driver rows of case 'digging'."""
+    """nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -3793,7 +3793,7 @@ def nu_digging(q, u, ud, p):
 
 
 def _drivers_nu_digging_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text)."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
     ud0, ud1, ud2, ud3 = ud
@@ -4410,7 +4410,7 @@ def _joints_gamma(q, v, p):
 
 
 def _drivers_gamma_digging(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'."""
+    """gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -5000,7 +5000,7 @@ def _joints_gamma_s(q, v, p):
 
 
 def _drivers_gamma_digging_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'digging'. (one configuration, lists of floats) The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -5356,7 +5356,7 @@ def _joints_phi_p(q, p):
 
 
 def _drivers_phi_p_digging(q, u, p):
-    """Phi_p values of the driver rows of case 'digging'."""
+    """Phi_p values of the driver rows of case 'digging'. The same function serves drivers_phi_p_level_cut, drivers_phi_p_trench_wall, drivers_phi_p_bucket_toggle, drivers_phi_p_bucket_stroke, drivers_phi_p_bucket_near_toggle, drivers_phi_p_digging_fast, drivers_phi_p_digging_paced, drivers_phi_p_oscillation (the same text)."""
     out = _zeros(0, q, u)
     return out
 
@@ -6732,7 +6732,7 @@ def _joints_dvel(q, v, p):
 
 
 def _drivers_dvel_digging(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'."""
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'. The same function serves drivers_dvel_bucket_toggle, drivers_dvel_bucket_stroke, drivers_dvel_bucket_near_toggle, drivers_dvel_digging_fast, drivers_dvel_digging_paced, drivers_dvel_oscillation (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, _, _, _ = u
@@ -10771,7 +10771,7 @@ def _joints_dacc(q, v, a, p):
 
 
 def _drivers_dacc_digging(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'."""
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'. The same function serves drivers_dacc_bucket_toggle, drivers_dacc_bucket_stroke, drivers_dacc_bucket_near_toggle, drivers_dacc_digging_fast, drivers_dacc_digging_paced, drivers_dacc_oscillation (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
@@ -10991,7 +10991,7 @@ def dacc_digging(q, v, a, u, ud, udd, p):
 
 
 def _drivers_phi_level_cut(q, u, p):
-    """Phi of the driver rows of case 'level_cut'."""
+    """Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text)."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
     bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
@@ -11013,7 +11013,7 @@ def phi_level_cut(q, u, p):
 
 
 def _drivers_jac_level_cut(q, u, p):
-    """Phi_q values of the driver rows of case 'level_cut'."""
+    """Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
     bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
@@ -11049,7 +11049,7 @@ def jac_level_cut(q, u, p):
 
 
 def _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p):
-    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """Phi of the driver rows of case 'level_cut'.; Phi_q values of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_phi_trench_wall and drivers_jac_trench_wall (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
     bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx)
@@ -11075,7 +11075,7 @@ def phi_jac_s_level_cut(q, u, p):
 
 
 def _drivers_nu_level_cut(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'."""
+    """nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -11096,7 +11096,7 @@ def nu_level_cut(q, u, ud, p):
 
 
 def _drivers_nu_level_cut_s(q, u, ud, p):
-    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """nu of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_nu_trench_wall (the same text)."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
@@ -11113,7 +11113,7 @@ def nu_s_level_cut(q, u, ud, p):
 
 
 def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'."""
+    """gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
     u0, _, _, u3 = u
@@ -11155,7 +11155,7 @@ def gamma_level_cut(q, v, u, ud, udd, p):
 
 
 def _drivers_gamma_level_cut_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats)"""
+    """gamma of the driver rows of case 'level_cut'. (one configuration, lists of floats) The same function serves drivers_gamma_trench_wall (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
     u0, _, _, u3 = u
@@ -11271,19 +11271,13 @@ def input_ranges_level_cut(span):
     return out
 
 
-def _drivers_phi_p_level_cut(q, u, p):
-    """Phi_p values of the driver rows of case 'level_cut'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_level_cut(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'level_cut': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_level_cut(q, u, p))
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def _drivers_dvel_level_cut(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'."""
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'. The same function serves drivers_dvel_trench_wall (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
     u0, _, _, u3 = u
@@ -11335,7 +11329,7 @@ def dvel_level_cut(q, v, u, ud, p):
 
 
 def _drivers_dacc_level_cut(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'."""
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'. The same function serves drivers_dacc_trench_wall (the same text)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
     _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
@@ -11459,206 +11453,43 @@ def dacc_level_cut(q, v, a, u, ud, udd, p):
     return _join(_joints_dacc(q, v, a, p), _drivers_dacc_level_cut(q, v, a, u, ud, udd, p))
 
 
-def _drivers_phi_trench_wall(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    u0, u1, u2, u3 = u
-    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x
-    out[2] = (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z
-    out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22
-    return out
-
-
 def phi_trench_wall(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
-
-
-def _drivers_jac_trench_wall(q, u, p):
-    """Phi_q values of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    u0, _, _, u3 = u
-    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = sin(u3)
-    c4 = cos(u3)
-    out = _zeros(12, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = 1
-    out[4] = (403/500)*bucket_a22 + (32/25)*bucket_a20
-    out[5] = -32/25*bucket_a10 - 403/500*bucket_a12
-    out[6] = 1
-    out[7] = (403/500)*bucket_a12 + (32/25)*bucket_a10
-    out[8] = -32/25*bucket_a00 - 403/500*bucket_a02
-    out[9] = c3*bucket_a12
-    out[10] = -c4*bucket_a22 - c3*bucket_a02
-    out[11] = c4*bucket_a12
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
 def jac_trench_wall(q, u, p):
     """Output 'jac' (415 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'."""
-    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
-
-
-def _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p):
-    """Phi of the driver rows of case 'trench_wall'.; Phi_q values of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    u0, u1, u2, u3 = u
-    bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx)
-    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
-    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
-    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
-    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
-    bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz)
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = math.sin(u3)
-    d4 = math.cos(u3)
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (32/25)*bucket_a00 - u1 + (403/500)*bucket_a02 + bucket_x, (403/500)*bucket_a22 + (32/25)*bucket_a20 - u2 + bucket_z, -math.cos(u3)*bucket_a02 + math.sin(u3)*bucket_a22], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, 1.0, (403/500)*bucket_a22 + (32/25)*bucket_a20, -32/25*bucket_a10 - 403/500*bucket_a12, 1.0, (403/500)*bucket_a12 + (32/25)*bucket_a10, -32/25*bucket_a00 - 403/500*bucket_a02, d3*bucket_a12, -d4*bucket_a22 - d3*bucket_a02, d4*bucket_a12]
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
 def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_trench_wall_drivers_jac_trench_wall_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_level_cut_drivers_jac_level_cut_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_trench_wall(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3
-    return out
 
 
 def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_trench_wall(q, u, ud, p))
-
-
-def _drivers_nu_trench_wall_s(q, u, ud, p):
-    """nu of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    u0, _, _, u3 = u
-    ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
-    bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz)
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, -(math.cos(u3)*bucket_a22 + math.sin(u3)*bucket_a02)*ud3]
+    return _join(80, _drivers_nu_level_cut(q, u, ud, p))
 
 
 def nu_s_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_trench_wall_s(q, u, ud, p)
+    s1_0 = _drivers_nu_level_cut_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = sin(u3)
-    c11 = cos(u3)
-    c12 = c11*bucket_a02
-    c13 = c10*bucket_a22
-    c14 = bucket_a12*v_bucket_theta_z
-    c15 = bucket_a12*v_bucket_theta_x
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = (403/500)*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z)*v_bucket_theta_z + (32/25)*(-bucket_a20*v_bucket_theta_x + bucket_a00*v_bucket_theta_z)*v_bucket_theta_z - 32/25*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x)*v_bucket_theta_y - 403/500*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x)*v_bucket_theta_y + udd1
-    out[2] = (403/500)*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y)*v_bucket_theta_y + (32/25)*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y)*v_bucket_theta_y - 32/25*(-bucket_a20*v_bucket_theta_x + bucket_a00*v_bucket_theta_z)*v_bucket_theta_x - 403/500*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z)*v_bucket_theta_x + udd2
-    out[3] = -2*ud3*(-c10*c14 + c11*c15 + (-c12 + c13)*v_bucket_theta_y) - (c11*v_bucket_theta_z + c10*v_bucket_theta_x)*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + c15) + c10*v_bucket_theta_y*(-c14 + bucket_a22*v_bucket_theta_y) - (-c13 + c12)*ud3**2 - (c11*bucket_a22 + c10*bucket_a02)*udd3
-    return out
 
 
 def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'trench_wall'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, udd1, udd2, udd3 = udd
-    bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx)
-    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
-    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
-    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
-    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
-    bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz)
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = math.sin(u3)
-    c11 = math.cos(u3)
-    c12 = c11*bucket_a02
-    c13 = c10*bucket_a22
-    c14 = bucket_a12*v_bucket_theta_z
-    c15 = bucket_a12*v_bucket_theta_x
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, (403/500)*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z)*v_bucket_theta_z + (32/25)*(-bucket_a20*v_bucket_theta_x + bucket_a00*v_bucket_theta_z)*v_bucket_theta_z - 32/25*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x)*v_bucket_theta_y - 403/500*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x)*v_bucket_theta_y + udd1, (403/500)*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y)*v_bucket_theta_y + (32/25)*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y)*v_bucket_theta_y - 32/25*(-bucket_a20*v_bucket_theta_x + bucket_a00*v_bucket_theta_z)*v_bucket_theta_x - 403/500*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z)*v_bucket_theta_x + udd2, -2.0*ud3*(-c10*c14 + c11*c15 + (-c12 + c13)*v_bucket_theta_y) - (c11*v_bucket_theta_z + c10*v_bucket_theta_x)*(-bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + c15) + c10*v_bucket_theta_y*(-c14 + bucket_a22*v_bucket_theta_y) - (-c13 + c12)*(ud3*ud3) - (c11*bucket_a22 + c10*bucket_a02)*udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
 def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_trench_wall_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_level_cut_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -11740,481 +11571,58 @@ def input_ranges_trench_wall(span):
     return out
 
 
-def _drivers_phi_p_trench_wall(q, u, p):
-    """Phi_p values of the driver rows of case 'trench_wall'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_trench_wall(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'trench_wall': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_trench_wall(q, u, p))
-
-
-def _drivers_dvel_trench_wall(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = (32/25)*v_bucket_theta_z
-    c8 = (403/500)*v_bucket_theta_z
-    c9 = (32/25)*v_bucket_theta_y
-    c10 = (403/500)*v_bucket_theta_y
-    c11 = (32/25)*v_bucket_theta_x
-    c12 = (403/500)*bucket_a22
-    c13 = (32/25)*v_bucket_theta_y
-    c14 = cos(u3)
-    c15 = sin(u3)
-    c16 = c15*v_bucket_theta_x + c14*v_bucket_theta_z
-    c17 = -c14*v_bucket_theta_y + c14*ud3
-    c18 = -c15*v_bucket_theta_y + c15*ud3
-    out = _zeros(12, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c10*bucket_a12 + c9*bucket_a10 + c8*bucket_a22 + c7*bucket_a20
-    out[4] = -c10*bucket_a02 - c9*bucket_a00
-    out[5] = -c8*bucket_a02 - c7*bucket_a00
-    out[6] = -c12*v_bucket_theta_x - c11*bucket_a20
-    out[7] = -c12*v_bucket_theta_y - c13*bucket_a20
-    out[8] = (403/500)*bucket_a02*v_bucket_theta_x + c11*bucket_a00 + (403/500)*bucket_a12*v_bucket_theta_y + c13*bucket_a10
-    out[9] = c17*bucket_a12 - c16*bucket_a22
-    out[10] = -c17*bucket_a02 + c18*bucket_a22
-    out[11] = c16*bucket_a02 - c18*bucket_a12
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_trench_wall(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'trench_wall': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_trench_wall(q, v, u, ud, p))
-
-
-def _drivers_dacc_trench_wall(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'trench_wall'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
-    u0, _, _, u3 = u
-    ud0, _, _, ud3 = ud
-    udd0, _, _, udd3 = udd
-    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = (32/25)*v_bucket_theta_x
-    c36 = -32/25*dv_bucket_theta_z + c35*v_bucket_theta_y
-    c37 = (32/25)*dv_bucket_theta_y + c35*v_bucket_theta_z
-    c38 = (403/500)*v_bucket_theta_y
-    c39 = -403/500*dv_bucket_theta_z + c38*v_bucket_theta_x
-    c40 = (403/500)*v_bucket_theta_z
-    c41 = (403/500)*dv_bucket_theta_y + c40*v_bucket_theta_x
-    c42 = v_bucket_theta_y**2
-    c43 = v_bucket_theta_z**2
-    c44 = -32/25*c43 - 32/25*c42
-    c45 = -403/500*c43 - 403/500*c42
-    c46 = (403/250)*bucket_a02
-    c47 = (403/500)*v_bucket_theta_x
-    c48 = (64/25)*bucket_a00
-    c49 = (32/25)*v_bucket_theta_z
-    c50 = (32/25)*dv_bucket_theta_x + c49*v_bucket_theta_y
-    c51 = (403/500)*v_bucket_theta_z
-    c52 = (403/500)*dv_bucket_theta_x + c51*v_bucket_theta_y
-    c53 = v_bucket_theta_x**2
-    c54 = v_bucket_theta_y**2
-    c55 = -403/500*c54 - 403/500*c53
-    c56 = -32/25*c54 - 32/25*c53
-    c57 = -32/25*dv_bucket_theta_y + c49*v_bucket_theta_x
-    c58 = -403/500*dv_bucket_theta_y + c51*v_bucket_theta_x
-    c59 = (403/250)*bucket_a22
-    c60 = (64/25)*bucket_a20
-    c61 = sin(u3)
-    c62 = c61*v_bucket_theta_z
-    c63 = cos(u3)
-    c64 = c63*v_bucket_theta_x
-    c65 = 2*ud3
-    c66 = c63*dv_bucket_theta_z - c64*v_bucket_theta_y + c61*dv_bucket_theta_x + (c64 - c62)*c65 + c62*v_bucket_theta_y
-    c67 = c63*v_bucket_theta_z + c61*v_bucket_theta_x
-    c68 = v_bucket_theta_y**2
-    c69 = ud3**2
-    c70 = c65*v_bucket_theta_y
-    c71 = -c63*dv_bucket_theta_y + c61*c70 - c61*c68 - c61*c69 - c67*v_bucket_theta_x + c63*udd3
-    c72 = -c61*dv_bucket_theta_y + c63*c68 - c63*c70 + c61*udd3 + c63*c69 + c67*v_bucket_theta_z
-    c73 = -bucket_a22*v_bucket_theta_x + bucket_a02*v_bucket_theta_z
-    c74 = c65*bucket_a12
-    c75 = bucket_a12*v_bucket_theta_y
-    c76 = bucket_a22*v_bucket_theta_y
-    c77 = bucket_a02*v_bucket_theta_y
-    out = _zeros(24, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = c41*bucket_a12 - c39*bucket_a22 + c37*bucket_a10 - c36*bucket_a20
-    out[7] = -c41*bucket_a02 - c37*bucket_a00 + c45*bucket_a22 + c44*bucket_a20
-    out[8] = c39*bucket_a02 + c36*bucket_a00 - c45*bucket_a12 - c44*bucket_a10
-    out[9] = (32/25)*bucket_a20*v_bucket_theta_z + c40*bucket_a22 + (32/25)*bucket_a10*v_bucket_theta_y + c38*bucket_a12
-    out[10] = c35*bucket_a10 - c48*v_bucket_theta_y + c47*bucket_a12 - c46*v_bucket_theta_y
-    out[11] = c35*bucket_a20 - c48*v_bucket_theta_z + c47*bucket_a22 - c46*v_bucket_theta_z
-    out[12] = c56*bucket_a10 + c55*bucket_a12 - c52*bucket_a22 - c50*bucket_a20
-    out[13] = -c55*bucket_a02 - c56*bucket_a00 + c58*bucket_a22 + c57*bucket_a20
-    out[14] = c52*bucket_a02 + c50*bucket_a00 - c58*bucket_a12 - c57*bucket_a10
-    out[15] = c49*bucket_a00 - c60*v_bucket_theta_x + c51*bucket_a02 - c59*v_bucket_theta_x
-    out[16] = c51*bucket_a12 - c59*v_bucket_theta_y + c49*bucket_a10 - c60*v_bucket_theta_y
-    out[17] = (403/500)*bucket_a12*v_bucket_theta_y + (32/25)*bucket_a10*v_bucket_theta_y + (32/25)*bucket_a00*v_bucket_theta_x + (403/500)*bucket_a02*v_bucket_theta_x
-    out[18] = c71*bucket_a12 - c66*bucket_a22
-    out[19] = -c71*bucket_a02 + c72*bucket_a22
-    out[20] = c66*bucket_a02 - c72*bucket_a12
-    out[21] = -c63*c75 + c63*c74 - c67*bucket_a22 + c61*c73
-    out[22] = -c63*(-c77 + bucket_a12*v_bucket_theta_x) + c63*c77 + (-c63*bucket_a02 + c61*bucket_a22)*c65 - c61*(-bucket_a12*v_bucket_theta_z + c76) - c61*c76
-    out[23] = -c61*c74 + c63*c73 + c61*c75 + c67*bucket_a02
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_level_cut(q, v, u, ud, p))
 
 
 def dacc_trench_wall(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'trench_wall': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_trench_wall(q, v, a, u, ud, udd, p))
-
-
-def _drivers_phi_bucket_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_level_cut(q, v, a, u, ud, udd, p))
 
 
 def phi_bucket_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_toggle(q, u, p):
     """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_toggle'.; Phi_q values of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_toggle_drivers_jac_bucket_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -12266,612 +11674,58 @@ def input_ranges_bucket_toggle(span):
     return out
 
 
-def _drivers_phi_p_bucket_toggle(q, u, p):
-    """Phi_p values of the driver rows of case 'bucket_toggle'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_bucket_toggle(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'bucket_toggle': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_bucket_toggle(q, u, p))
-
-
-def _drivers_dvel_bucket_toggle(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y
-    c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z
-    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x
-    c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x
-    c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y
-    c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z
-    c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x
-    out = _zeros(30, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c8 - c7
-    out[4] = -c10 + c9
-    out[5] = c12 - c11
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
-    out[9] = -c8 + c7
-    out[10] = c10 - c9
-    out[11] = -c12 + c11
-    out[12] = -c17 + c16
-    out[13] = c19 - c18
-    out[14] = c21 - c20
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10
-    out[18] = c17 - c16
-    out[19] = -c19 + c18
-    out[20] = -c21 + c20
-    out[21] = -c26 + c25
-    out[22] = c28 - c27
-    out[23] = c30 - c29
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10
-    out[27] = c26 - c25
-    out[28] = -c28 + c27
-    out[29] = -c30 + c29
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_bucket_toggle(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'bucket_toggle': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_bucket_toggle(q, v, u, ud, p))
-
-
-def _drivers_dacc_bucket_toggle(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, _, _, _ = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z
-    c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c38 = -c37 + c36
-    c39 = c38*v_boom_cyl_l_barrel_theta_z
-    c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y
-    c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c43 = -c42 + c41
-    c44 = c43*v_boom_cyl_l_barrel_theta_y
-    c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x
-    c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z
-    c47 = c43*v_boom_cyl_l_barrel_theta_x
-    c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c50 = -c49 + c48
-    c51 = c50*v_boom_cyl_l_barrel_theta_z
-    c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y
-    c53 = c38*v_boom_cyl_l_barrel_theta_x
-    c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x
-    c55 = c50*v_boom_cyl_l_barrel_theta_y
-    c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z
-    c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x
-    c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
-    c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z
-    c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x
-    c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x
-    c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x
-    c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y
-    c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z
-    c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y
-    c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c72 = -c71 + c70
-    c73 = c72*v_arm_cyl_barrel_theta_y
-    c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c76 = -c75 + c74
-    c77 = c76*v_arm_cyl_barrel_theta_z
-    c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x
-    c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z
-    c80 = c72*v_arm_cyl_barrel_theta_x
-    c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c83 = -c82 + c81
-    c84 = c83*v_arm_cyl_barrel_theta_z
-    c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y
-    c86 = c76*v_arm_cyl_barrel_theta_x
-    c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x
-    c88 = c83*v_arm_cyl_barrel_theta_y
-    c89 = -arm_cyl_rod_z + arm_cyl_barrel_z
-    c90 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x
-    c92 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c93 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c95 = -arm_cyl_rod_x + arm_cyl_barrel_x
-    c96 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z
-    c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y
-    c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y
-    c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z
-    c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y
-    c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z
-    c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c105 = -c104 + c103
-    c106 = c105*v_bucket_cyl_barrel_theta_z
-    c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c109 = -c108 + c107
-    c110 = c109*v_bucket_cyl_barrel_theta_y
-    c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x
-    c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z
-    c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c115 = -c114 + c113
-    c116 = c115*v_bucket_cyl_barrel_theta_z
-    c117 = c109*v_bucket_cyl_barrel_theta_x
-    c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y
-    c119 = c115*v_bucket_cyl_barrel_theta_y
-    c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x
-    c121 = c105*v_bucket_cyl_barrel_theta_x
-    c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z
-    c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x
-    c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z
-    c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x
-    c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y
-    c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y
-    c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z
-    c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y
-    out = _zeros(60, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = -c44 - c40 + c39 + c35
-    out[7] = -c51 + c47 - c46 + c45
-    out[8] = c55 - c54 - c53 + c52
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10
-    out[12] = c44 + c40 - c39 - c35
-    out[13] = c51 - c47 + c46 - c45
-    out[14] = -c55 + c54 + c53 - c52
-    out[15] = c49 - c48 - c50
-    out[16] = -c38 + c37 - c36
-    out[17] = -c43 + c42 - c41
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00
-    out[21] = 2*c48 - 2*c49
-    out[22] = 2*c36 - 2*c37
-    out[23] = 2*c41 - 2*c42
-    out[24] = c77 - c73 - c69 + c68
-    out[25] = -c84 + c80 - c79 + c78
-    out[26] = c88 - c87 - c86 + c85
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10
-    out[30] = -c77 + c73 + c69 - c68
-    out[31] = c84 - c80 + c79 - c78
-    out[32] = -c88 + c87 + c86 - c85
-    out[33] = -c83 + c82 - c81
-    out[34] = -c76 + c75 - c74
-    out[35] = -c72 + c71 - c70
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x
-    out[39] = 2*c81 - 2*c82
-    out[40] = 2*c74 - 2*c75
-    out[41] = 2*c70 - 2*c71
-    out[42] = -c110 + c106 + c102 - c101
-    out[43] = c117 - c116 - c112 + c111
-    out[44] = -c121 - c120 + c119 + c118
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10
-    out[48] = c110 - c106 - c102 + c101
-    out[49] = -c117 + c116 + c112 - c111
-    out[50] = c121 + c120 - c119 - c118
-    out[51] = -c115 + c114 - c113
-    out[52] = -c105 + c104 - c103
-    out[53] = c108 - c107 - c109
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10
-    out[57] = 2*c113 - 2*c114
-    out[58] = 2*c103 - 2*c104
-    out[59] = 2*c107 - 2*c108
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
 
 
 def dacc_bucket_toggle(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'bucket_toggle': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_bucket_toggle(q, v, a, u, ud, udd, p))
-
-
-def _drivers_phi_bucket_stroke(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
 
 
 def phi_bucket_stroke(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
-
-
-def _drivers_jac_bucket_stroke(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_stroke(q, u, p):
     """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
-
-
-def _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_stroke'.; Phi_q values of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_stroke(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_stroke_drivers_jac_bucket_stroke_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_stroke(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_stroke(q, u, ud, p))
-
-
-def _drivers_nu_bucket_stroke_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_stroke(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_stroke_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_stroke'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_stroke_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -12923,612 +11777,58 @@ def input_ranges_bucket_stroke(span):
     return out
 
 
-def _drivers_phi_p_bucket_stroke(q, u, p):
-    """Phi_p values of the driver rows of case 'bucket_stroke'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_bucket_stroke(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'bucket_stroke': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_bucket_stroke(q, u, p))
-
-
-def _drivers_dvel_bucket_stroke(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y
-    c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z
-    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x
-    c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x
-    c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y
-    c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z
-    c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x
-    out = _zeros(30, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c8 - c7
-    out[4] = -c10 + c9
-    out[5] = c12 - c11
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
-    out[9] = -c8 + c7
-    out[10] = c10 - c9
-    out[11] = -c12 + c11
-    out[12] = -c17 + c16
-    out[13] = c19 - c18
-    out[14] = c21 - c20
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10
-    out[18] = c17 - c16
-    out[19] = -c19 + c18
-    out[20] = -c21 + c20
-    out[21] = -c26 + c25
-    out[22] = c28 - c27
-    out[23] = c30 - c29
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10
-    out[27] = c26 - c25
-    out[28] = -c28 + c27
-    out[29] = -c30 + c29
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_bucket_stroke(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'bucket_stroke': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_bucket_stroke(q, v, u, ud, p))
-
-
-def _drivers_dacc_bucket_stroke(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_stroke'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, _, _, _ = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z
-    c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c38 = -c37 + c36
-    c39 = c38*v_boom_cyl_l_barrel_theta_z
-    c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y
-    c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c43 = -c42 + c41
-    c44 = c43*v_boom_cyl_l_barrel_theta_y
-    c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x
-    c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z
-    c47 = c43*v_boom_cyl_l_barrel_theta_x
-    c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c50 = -c49 + c48
-    c51 = c50*v_boom_cyl_l_barrel_theta_z
-    c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y
-    c53 = c38*v_boom_cyl_l_barrel_theta_x
-    c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x
-    c55 = c50*v_boom_cyl_l_barrel_theta_y
-    c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z
-    c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x
-    c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
-    c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z
-    c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x
-    c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x
-    c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x
-    c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y
-    c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z
-    c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y
-    c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c72 = -c71 + c70
-    c73 = c72*v_arm_cyl_barrel_theta_y
-    c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c76 = -c75 + c74
-    c77 = c76*v_arm_cyl_barrel_theta_z
-    c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x
-    c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z
-    c80 = c72*v_arm_cyl_barrel_theta_x
-    c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c83 = -c82 + c81
-    c84 = c83*v_arm_cyl_barrel_theta_z
-    c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y
-    c86 = c76*v_arm_cyl_barrel_theta_x
-    c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x
-    c88 = c83*v_arm_cyl_barrel_theta_y
-    c89 = -arm_cyl_rod_z + arm_cyl_barrel_z
-    c90 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x
-    c92 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c93 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c95 = -arm_cyl_rod_x + arm_cyl_barrel_x
-    c96 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z
-    c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y
-    c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y
-    c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z
-    c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y
-    c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z
-    c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c105 = -c104 + c103
-    c106 = c105*v_bucket_cyl_barrel_theta_z
-    c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c109 = -c108 + c107
-    c110 = c109*v_bucket_cyl_barrel_theta_y
-    c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x
-    c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z
-    c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c115 = -c114 + c113
-    c116 = c115*v_bucket_cyl_barrel_theta_z
-    c117 = c109*v_bucket_cyl_barrel_theta_x
-    c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y
-    c119 = c115*v_bucket_cyl_barrel_theta_y
-    c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x
-    c121 = c105*v_bucket_cyl_barrel_theta_x
-    c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z
-    c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x
-    c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z
-    c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x
-    c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y
-    c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y
-    c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z
-    c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y
-    out = _zeros(60, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = -c44 - c40 + c39 + c35
-    out[7] = -c51 + c47 - c46 + c45
-    out[8] = c55 - c54 - c53 + c52
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10
-    out[12] = c44 + c40 - c39 - c35
-    out[13] = c51 - c47 + c46 - c45
-    out[14] = -c55 + c54 + c53 - c52
-    out[15] = c49 - c48 - c50
-    out[16] = -c38 + c37 - c36
-    out[17] = -c43 + c42 - c41
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00
-    out[21] = 2*c48 - 2*c49
-    out[22] = 2*c36 - 2*c37
-    out[23] = 2*c41 - 2*c42
-    out[24] = c77 - c73 - c69 + c68
-    out[25] = -c84 + c80 - c79 + c78
-    out[26] = c88 - c87 - c86 + c85
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10
-    out[30] = -c77 + c73 + c69 - c68
-    out[31] = c84 - c80 + c79 - c78
-    out[32] = -c88 + c87 + c86 - c85
-    out[33] = -c83 + c82 - c81
-    out[34] = -c76 + c75 - c74
-    out[35] = -c72 + c71 - c70
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x
-    out[39] = 2*c81 - 2*c82
-    out[40] = 2*c74 - 2*c75
-    out[41] = 2*c70 - 2*c71
-    out[42] = -c110 + c106 + c102 - c101
-    out[43] = c117 - c116 - c112 + c111
-    out[44] = -c121 - c120 + c119 + c118
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10
-    out[48] = c110 - c106 - c102 + c101
-    out[49] = -c117 + c116 + c112 - c111
-    out[50] = c121 + c120 - c119 - c118
-    out[51] = -c115 + c114 - c113
-    out[52] = -c105 + c104 - c103
-    out[53] = c108 - c107 - c109
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10
-    out[57] = 2*c113 - 2*c114
-    out[58] = 2*c103 - 2*c104
-    out[59] = 2*c107 - 2*c108
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
 
 
 def dacc_bucket_stroke(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'bucket_stroke': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_bucket_stroke(q, v, a, u, ud, udd, p))
-
-
-def _drivers_phi_bucket_near_toggle(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
 
 
 def phi_bucket_near_toggle(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
-
-
-def _drivers_jac_bucket_near_toggle(q, u, p):
-    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_bucket_near_toggle(q, u, p):
     """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'."""
-    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
-
-
-def _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p):
-    """Phi of the driver rows of case 'bucket_near_toggle'.; Phi_q values of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_bucket_near_toggle_drivers_jac_bucket_near_toggle_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_bucket_near_toggle(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_bucket_near_toggle(q, u, ud, p))
-
-
-def _drivers_nu_bucket_near_toggle_s(q, u, ud, p):
-    """nu of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_bucket_near_toggle_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'bucket_near_toggle'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_bucket_near_toggle_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -13591,612 +11891,58 @@ def input_ranges_bucket_near_toggle(span):
     return out
 
 
-def _drivers_phi_p_bucket_near_toggle(q, u, p):
-    """Phi_p values of the driver rows of case 'bucket_near_toggle'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_bucket_near_toggle(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'bucket_near_toggle': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_bucket_near_toggle(q, u, p))
-
-
-def _drivers_dvel_bucket_near_toggle(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y
-    c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z
-    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x
-    c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x
-    c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y
-    c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z
-    c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x
-    out = _zeros(30, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c8 - c7
-    out[4] = -c10 + c9
-    out[5] = c12 - c11
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
-    out[9] = -c8 + c7
-    out[10] = c10 - c9
-    out[11] = -c12 + c11
-    out[12] = -c17 + c16
-    out[13] = c19 - c18
-    out[14] = c21 - c20
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10
-    out[18] = c17 - c16
-    out[19] = -c19 + c18
-    out[20] = -c21 + c20
-    out[21] = -c26 + c25
-    out[22] = c28 - c27
-    out[23] = c30 - c29
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10
-    out[27] = c26 - c25
-    out[28] = -c28 + c27
-    out[29] = -c30 + c29
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_bucket_near_toggle(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'bucket_near_toggle': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_bucket_near_toggle(q, v, u, ud, p))
-
-
-def _drivers_dacc_bucket_near_toggle(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_near_toggle'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, _, _, _ = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z
-    c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c38 = -c37 + c36
-    c39 = c38*v_boom_cyl_l_barrel_theta_z
-    c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y
-    c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c43 = -c42 + c41
-    c44 = c43*v_boom_cyl_l_barrel_theta_y
-    c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x
-    c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z
-    c47 = c43*v_boom_cyl_l_barrel_theta_x
-    c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c50 = -c49 + c48
-    c51 = c50*v_boom_cyl_l_barrel_theta_z
-    c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y
-    c53 = c38*v_boom_cyl_l_barrel_theta_x
-    c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x
-    c55 = c50*v_boom_cyl_l_barrel_theta_y
-    c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z
-    c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x
-    c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
-    c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z
-    c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x
-    c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x
-    c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x
-    c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y
-    c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z
-    c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y
-    c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c72 = -c71 + c70
-    c73 = c72*v_arm_cyl_barrel_theta_y
-    c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c76 = -c75 + c74
-    c77 = c76*v_arm_cyl_barrel_theta_z
-    c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x
-    c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z
-    c80 = c72*v_arm_cyl_barrel_theta_x
-    c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c83 = -c82 + c81
-    c84 = c83*v_arm_cyl_barrel_theta_z
-    c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y
-    c86 = c76*v_arm_cyl_barrel_theta_x
-    c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x
-    c88 = c83*v_arm_cyl_barrel_theta_y
-    c89 = -arm_cyl_rod_z + arm_cyl_barrel_z
-    c90 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x
-    c92 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c93 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c95 = -arm_cyl_rod_x + arm_cyl_barrel_x
-    c96 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z
-    c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y
-    c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y
-    c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z
-    c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y
-    c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z
-    c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c105 = -c104 + c103
-    c106 = c105*v_bucket_cyl_barrel_theta_z
-    c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c109 = -c108 + c107
-    c110 = c109*v_bucket_cyl_barrel_theta_y
-    c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x
-    c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z
-    c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c115 = -c114 + c113
-    c116 = c115*v_bucket_cyl_barrel_theta_z
-    c117 = c109*v_bucket_cyl_barrel_theta_x
-    c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y
-    c119 = c115*v_bucket_cyl_barrel_theta_y
-    c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x
-    c121 = c105*v_bucket_cyl_barrel_theta_x
-    c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z
-    c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x
-    c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z
-    c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x
-    c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y
-    c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y
-    c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z
-    c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y
-    out = _zeros(60, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = -c44 - c40 + c39 + c35
-    out[7] = -c51 + c47 - c46 + c45
-    out[8] = c55 - c54 - c53 + c52
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10
-    out[12] = c44 + c40 - c39 - c35
-    out[13] = c51 - c47 + c46 - c45
-    out[14] = -c55 + c54 + c53 - c52
-    out[15] = c49 - c48 - c50
-    out[16] = -c38 + c37 - c36
-    out[17] = -c43 + c42 - c41
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00
-    out[21] = 2*c48 - 2*c49
-    out[22] = 2*c36 - 2*c37
-    out[23] = 2*c41 - 2*c42
-    out[24] = c77 - c73 - c69 + c68
-    out[25] = -c84 + c80 - c79 + c78
-    out[26] = c88 - c87 - c86 + c85
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10
-    out[30] = -c77 + c73 + c69 - c68
-    out[31] = c84 - c80 + c79 - c78
-    out[32] = -c88 + c87 + c86 - c85
-    out[33] = -c83 + c82 - c81
-    out[34] = -c76 + c75 - c74
-    out[35] = -c72 + c71 - c70
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x
-    out[39] = 2*c81 - 2*c82
-    out[40] = 2*c74 - 2*c75
-    out[41] = 2*c70 - 2*c71
-    out[42] = -c110 + c106 + c102 - c101
-    out[43] = c117 - c116 - c112 + c111
-    out[44] = -c121 - c120 + c119 + c118
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10
-    out[48] = c110 - c106 - c102 + c101
-    out[49] = -c117 + c116 + c112 - c111
-    out[50] = c121 + c120 - c119 - c118
-    out[51] = -c115 + c114 - c113
-    out[52] = -c105 + c104 - c103
-    out[53] = c108 - c107 - c109
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10
-    out[57] = 2*c113 - 2*c114
-    out[58] = 2*c103 - 2*c104
-    out[59] = 2*c107 - 2*c108
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
 
 
 def dacc_bucket_near_toggle(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'bucket_near_toggle': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_bucket_near_toggle(q, v, a, u, ud, udd, p))
-
-
-def _drivers_phi_digging_fast(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
 
 
 def phi_digging_fast(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_fast(q, u, p))
-
-
-def _drivers_jac_digging_fast(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_fast(q, u, p):
     """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_fast(q, u, p))
-
-
-def _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p):
-    """Phi of the driver rows of case 'digging_fast'.; Phi_q values of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_fast(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_fast_drivers_jac_digging_fast_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_fast(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_fast(q, u, ud, p))
-
-
-def _drivers_nu_digging_fast_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_fast(q, u, ud, p):
     """nu = -Phi_t of case 'digging_fast' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_fast_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_fast(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_fast(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_fast'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_fast(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_fast'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_fast_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -14423,612 +12169,58 @@ def input_ranges_digging_fast(span):
     return out
 
 
-def _drivers_phi_p_digging_fast(q, u, p):
-    """Phi_p values of the driver rows of case 'digging_fast'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_digging_fast(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'digging_fast': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging_fast(q, u, p))
-
-
-def _drivers_dvel_digging_fast(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y
-    c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z
-    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x
-    c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x
-    c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y
-    c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z
-    c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x
-    out = _zeros(30, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c8 - c7
-    out[4] = -c10 + c9
-    out[5] = c12 - c11
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
-    out[9] = -c8 + c7
-    out[10] = c10 - c9
-    out[11] = -c12 + c11
-    out[12] = -c17 + c16
-    out[13] = c19 - c18
-    out[14] = c21 - c20
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10
-    out[18] = c17 - c16
-    out[19] = -c19 + c18
-    out[20] = -c21 + c20
-    out[21] = -c26 + c25
-    out[22] = c28 - c27
-    out[23] = c30 - c29
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10
-    out[27] = c26 - c25
-    out[28] = -c28 + c27
-    out[29] = -c30 + c29
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_digging_fast(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'digging_fast': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging_fast(q, v, u, ud, p))
-
-
-def _drivers_dacc_digging_fast(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging_fast'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, _, _, _ = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z
-    c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c38 = -c37 + c36
-    c39 = c38*v_boom_cyl_l_barrel_theta_z
-    c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y
-    c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c43 = -c42 + c41
-    c44 = c43*v_boom_cyl_l_barrel_theta_y
-    c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x
-    c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z
-    c47 = c43*v_boom_cyl_l_barrel_theta_x
-    c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c50 = -c49 + c48
-    c51 = c50*v_boom_cyl_l_barrel_theta_z
-    c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y
-    c53 = c38*v_boom_cyl_l_barrel_theta_x
-    c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x
-    c55 = c50*v_boom_cyl_l_barrel_theta_y
-    c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z
-    c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x
-    c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
-    c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z
-    c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x
-    c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x
-    c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x
-    c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y
-    c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z
-    c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y
-    c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c72 = -c71 + c70
-    c73 = c72*v_arm_cyl_barrel_theta_y
-    c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c76 = -c75 + c74
-    c77 = c76*v_arm_cyl_barrel_theta_z
-    c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x
-    c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z
-    c80 = c72*v_arm_cyl_barrel_theta_x
-    c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c83 = -c82 + c81
-    c84 = c83*v_arm_cyl_barrel_theta_z
-    c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y
-    c86 = c76*v_arm_cyl_barrel_theta_x
-    c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x
-    c88 = c83*v_arm_cyl_barrel_theta_y
-    c89 = -arm_cyl_rod_z + arm_cyl_barrel_z
-    c90 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x
-    c92 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c93 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c95 = -arm_cyl_rod_x + arm_cyl_barrel_x
-    c96 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z
-    c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y
-    c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y
-    c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z
-    c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y
-    c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z
-    c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c105 = -c104 + c103
-    c106 = c105*v_bucket_cyl_barrel_theta_z
-    c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c109 = -c108 + c107
-    c110 = c109*v_bucket_cyl_barrel_theta_y
-    c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x
-    c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z
-    c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c115 = -c114 + c113
-    c116 = c115*v_bucket_cyl_barrel_theta_z
-    c117 = c109*v_bucket_cyl_barrel_theta_x
-    c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y
-    c119 = c115*v_bucket_cyl_barrel_theta_y
-    c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x
-    c121 = c105*v_bucket_cyl_barrel_theta_x
-    c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z
-    c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x
-    c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z
-    c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x
-    c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y
-    c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y
-    c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z
-    c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y
-    out = _zeros(60, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = -c44 - c40 + c39 + c35
-    out[7] = -c51 + c47 - c46 + c45
-    out[8] = c55 - c54 - c53 + c52
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10
-    out[12] = c44 + c40 - c39 - c35
-    out[13] = c51 - c47 + c46 - c45
-    out[14] = -c55 + c54 + c53 - c52
-    out[15] = c49 - c48 - c50
-    out[16] = -c38 + c37 - c36
-    out[17] = -c43 + c42 - c41
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00
-    out[21] = 2*c48 - 2*c49
-    out[22] = 2*c36 - 2*c37
-    out[23] = 2*c41 - 2*c42
-    out[24] = c77 - c73 - c69 + c68
-    out[25] = -c84 + c80 - c79 + c78
-    out[26] = c88 - c87 - c86 + c85
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10
-    out[30] = -c77 + c73 + c69 - c68
-    out[31] = c84 - c80 + c79 - c78
-    out[32] = -c88 + c87 + c86 - c85
-    out[33] = -c83 + c82 - c81
-    out[34] = -c76 + c75 - c74
-    out[35] = -c72 + c71 - c70
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x
-    out[39] = 2*c81 - 2*c82
-    out[40] = 2*c74 - 2*c75
-    out[41] = 2*c70 - 2*c71
-    out[42] = -c110 + c106 + c102 - c101
-    out[43] = c117 - c116 - c112 + c111
-    out[44] = -c121 - c120 + c119 + c118
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10
-    out[48] = c110 - c106 - c102 + c101
-    out[49] = -c117 + c116 + c112 - c111
-    out[50] = c121 + c120 - c119 - c118
-    out[51] = -c115 + c114 - c113
-    out[52] = -c105 + c104 - c103
-    out[53] = c108 - c107 - c109
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10
-    out[57] = 2*c113 - 2*c114
-    out[58] = 2*c103 - 2*c104
-    out[59] = 2*c107 - 2*c108
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
 
 
 def dacc_digging_fast(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'digging_fast': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging_fast(q, v, a, u, ud, udd, p))
-
-
-def _drivers_phi_digging_paced(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
 
 
 def phi_digging_paced(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
-
-
-def _drivers_jac_digging_paced(q, u, p):
-    """Phi_q values of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_digging_paced(q, u, p):
     """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
-    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
-
-
-def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
-    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_digging_paced(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_digging_paced(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
-
-
-def _drivers_nu_digging_paced_s(q, u, ud, p):
-    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_digging_paced(q, u, ud, p):
     """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_digging_paced(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -15255,612 +12447,58 @@ def input_ranges_digging_paced(span):
     return out
 
 
-def _drivers_phi_p_digging_paced(q, u, p):
-    """Phi_p values of the driver rows of case 'digging_paced'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_digging_paced(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'digging_paced': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging_paced(q, u, p))
-
-
-def _drivers_dvel_digging_paced(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y
-    c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z
-    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x
-    c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x
-    c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y
-    c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z
-    c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x
-    out = _zeros(30, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c8 - c7
-    out[4] = -c10 + c9
-    out[5] = c12 - c11
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
-    out[9] = -c8 + c7
-    out[10] = c10 - c9
-    out[11] = -c12 + c11
-    out[12] = -c17 + c16
-    out[13] = c19 - c18
-    out[14] = c21 - c20
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10
-    out[18] = c17 - c16
-    out[19] = -c19 + c18
-    out[20] = -c21 + c20
-    out[21] = -c26 + c25
-    out[22] = c28 - c27
-    out[23] = c30 - c29
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10
-    out[27] = c26 - c25
-    out[28] = -c28 + c27
-    out[29] = -c30 + c29
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_digging_paced(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'digging_paced': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging_paced(q, v, u, ud, p))
-
-
-def _drivers_dacc_digging_paced(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging_paced'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, _, _, _ = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z
-    c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c38 = -c37 + c36
-    c39 = c38*v_boom_cyl_l_barrel_theta_z
-    c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y
-    c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c43 = -c42 + c41
-    c44 = c43*v_boom_cyl_l_barrel_theta_y
-    c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x
-    c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z
-    c47 = c43*v_boom_cyl_l_barrel_theta_x
-    c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c50 = -c49 + c48
-    c51 = c50*v_boom_cyl_l_barrel_theta_z
-    c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y
-    c53 = c38*v_boom_cyl_l_barrel_theta_x
-    c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x
-    c55 = c50*v_boom_cyl_l_barrel_theta_y
-    c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z
-    c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x
-    c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
-    c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z
-    c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x
-    c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x
-    c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x
-    c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y
-    c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z
-    c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y
-    c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c72 = -c71 + c70
-    c73 = c72*v_arm_cyl_barrel_theta_y
-    c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c76 = -c75 + c74
-    c77 = c76*v_arm_cyl_barrel_theta_z
-    c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x
-    c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z
-    c80 = c72*v_arm_cyl_barrel_theta_x
-    c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c83 = -c82 + c81
-    c84 = c83*v_arm_cyl_barrel_theta_z
-    c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y
-    c86 = c76*v_arm_cyl_barrel_theta_x
-    c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x
-    c88 = c83*v_arm_cyl_barrel_theta_y
-    c89 = -arm_cyl_rod_z + arm_cyl_barrel_z
-    c90 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x
-    c92 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c93 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c95 = -arm_cyl_rod_x + arm_cyl_barrel_x
-    c96 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z
-    c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y
-    c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y
-    c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z
-    c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y
-    c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z
-    c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c105 = -c104 + c103
-    c106 = c105*v_bucket_cyl_barrel_theta_z
-    c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c109 = -c108 + c107
-    c110 = c109*v_bucket_cyl_barrel_theta_y
-    c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x
-    c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z
-    c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c115 = -c114 + c113
-    c116 = c115*v_bucket_cyl_barrel_theta_z
-    c117 = c109*v_bucket_cyl_barrel_theta_x
-    c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y
-    c119 = c115*v_bucket_cyl_barrel_theta_y
-    c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x
-    c121 = c105*v_bucket_cyl_barrel_theta_x
-    c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z
-    c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x
-    c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z
-    c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x
-    c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y
-    c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y
-    c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z
-    c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y
-    out = _zeros(60, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = -c44 - c40 + c39 + c35
-    out[7] = -c51 + c47 - c46 + c45
-    out[8] = c55 - c54 - c53 + c52
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10
-    out[12] = c44 + c40 - c39 - c35
-    out[13] = c51 - c47 + c46 - c45
-    out[14] = -c55 + c54 + c53 - c52
-    out[15] = c49 - c48 - c50
-    out[16] = -c38 + c37 - c36
-    out[17] = -c43 + c42 - c41
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00
-    out[21] = 2*c48 - 2*c49
-    out[22] = 2*c36 - 2*c37
-    out[23] = 2*c41 - 2*c42
-    out[24] = c77 - c73 - c69 + c68
-    out[25] = -c84 + c80 - c79 + c78
-    out[26] = c88 - c87 - c86 + c85
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10
-    out[30] = -c77 + c73 + c69 - c68
-    out[31] = c84 - c80 + c79 - c78
-    out[32] = -c88 + c87 + c86 - c85
-    out[33] = -c83 + c82 - c81
-    out[34] = -c76 + c75 - c74
-    out[35] = -c72 + c71 - c70
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x
-    out[39] = 2*c81 - 2*c82
-    out[40] = 2*c74 - 2*c75
-    out[41] = 2*c70 - 2*c71
-    out[42] = -c110 + c106 + c102 - c101
-    out[43] = c117 - c116 - c112 + c111
-    out[44] = -c121 - c120 + c119 + c118
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10
-    out[48] = c110 - c106 - c102 + c101
-    out[49] = -c117 + c116 + c112 - c111
-    out[50] = c121 + c120 - c119 - c118
-    out[51] = -c115 + c114 - c113
-    out[52] = -c105 + c104 - c103
-    out[53] = c108 - c107 - c109
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10
-    out[57] = 2*c113 - 2*c114
-    out[58] = 2*c103 - 2*c104
-    out[59] = 2*c107 - 2*c108
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
 
 
 def dacc_digging_paced(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'digging_paced': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging_paced(q, v, a, u, ud, udd, p))
-
-
-def _drivers_phi_oscillation(q, u, p):
-    """Phi of the driver rows of case 'oscillation'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = 2*sin(c0)*upper_qw - 2*cos(c0)*upper_qz
-    out[1] = (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1
-    out[2] = (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2
-    out[3] = (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3
-    return out
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
 
 
 def phi_oscillation(q, u, p):
     """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_phi(q, p), _drivers_phi_oscillation(q, u, p))
-
-
-def _drivers_jac_oscillation(q, u, p):
-    """Phi_q values of the driver rows of case 'oscillation'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = sin(c0)
-    c2 = cos(c0)
-    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    out = _zeros(30, q, u)
-    out[0] = -c2*upper_qy - c1*upper_qx
-    out[1] = -c1*upper_qy + c2*upper_qx
-    out[2] = -c1*upper_qz - c2*upper_qw
-    out[3] = -boom_cyl_l_barrel_a00
-    out[4] = -boom_cyl_l_barrel_a10
-    out[5] = -boom_cyl_l_barrel_a20
-    out[6] = -c4*boom_cyl_l_barrel_a20 + c3*boom_cyl_l_barrel_a10
-    out[7] = -c3*boom_cyl_l_barrel_a00 + c5*boom_cyl_l_barrel_a20
-    out[8] = -c5*boom_cyl_l_barrel_a10 + c4*boom_cyl_l_barrel_a00
-    out[9] = boom_cyl_l_barrel_a00
-    out[10] = boom_cyl_l_barrel_a10
-    out[11] = boom_cyl_l_barrel_a20
-    out[12] = -arm_cyl_barrel_a00
-    out[13] = -arm_cyl_barrel_a10
-    out[14] = -arm_cyl_barrel_a20
-    out[15] = -c7*arm_cyl_barrel_a20 + c6*arm_cyl_barrel_a10
-    out[16] = -c6*arm_cyl_barrel_a00 + c8*arm_cyl_barrel_a20
-    out[17] = -c8*arm_cyl_barrel_a10 + c7*arm_cyl_barrel_a00
-    out[18] = arm_cyl_barrel_a00
-    out[19] = arm_cyl_barrel_a10
-    out[20] = arm_cyl_barrel_a20
-    out[21] = -bucket_cyl_barrel_a00
-    out[22] = -bucket_cyl_barrel_a10
-    out[23] = -bucket_cyl_barrel_a20
-    out[24] = -c10*bucket_cyl_barrel_a20 + c9*bucket_cyl_barrel_a10
-    out[25] = -c9*bucket_cyl_barrel_a00 + c11*bucket_cyl_barrel_a20
-    out[26] = -c11*bucket_cyl_barrel_a10 + c10*bucket_cyl_barrel_a00
-    out[27] = bucket_cyl_barrel_a00
-    out[28] = bucket_cyl_barrel_a10
-    out[29] = bucket_cyl_barrel_a20
-    return out
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
 def jac_oscillation(q, u, p):
     """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'."""
-    return _join(_joints_jac(q, p), _drivers_jac_oscillation(q, u, p))
-
-
-def _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p):
-    """Phi of the driver rows of case 'oscillation'.; Phi_q values of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    d0 = (1/2)*u0
-    d1 = math.sin(d0)
-    d2 = math.cos(d0)
-    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
-    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
-    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
-    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    return [2.0*math.sin(c0)*upper_qw - 2.0*math.cos(c0)*upper_qz, (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*boom_cyl_l_barrel_a20 + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*boom_cyl_l_barrel_a10 + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*boom_cyl_l_barrel_a00 - u1, (-arm_cyl_barrel_z + arm_cyl_rod_z)*arm_cyl_barrel_a20 + (-arm_cyl_barrel_y + arm_cyl_rod_y)*arm_cyl_barrel_a10 + (-arm_cyl_barrel_x + arm_cyl_rod_x)*arm_cyl_barrel_a00 - u2, (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*bucket_cyl_barrel_a20 + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*bucket_cyl_barrel_a10 + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*bucket_cyl_barrel_a00 - u3], [-d2*upper_qy - d1*upper_qx, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, -d4*boom_cyl_l_barrel_a20 + d3*boom_cyl_l_barrel_a10, -d3*boom_cyl_l_barrel_a00 + d5*boom_cyl_l_barrel_a20, -d5*boom_cyl_l_barrel_a10 + d4*boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, -d7*arm_cyl_barrel_a20 + d6*arm_cyl_barrel_a10, -d6*arm_cyl_barrel_a00 + d8*arm_cyl_barrel_a20, -d8*arm_cyl_barrel_a10 + d7*arm_cyl_barrel_a00, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, -d10*bucket_cyl_barrel_a20 + d9*bucket_cyl_barrel_a10, -d9*bucket_cyl_barrel_a00 + d11*bucket_cyl_barrel_a20, -d11*bucket_cyl_barrel_a10 + d10*bucket_cyl_barrel_a00, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
 def phi_jac_s_oscillation(q, u, p):
     """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
-    s1_0, s1_1 = _drivers_phi_oscillation_drivers_jac_oscillation_s(q, u, p)
+    s1_0, s1_1 = _drivers_phi_digging_drivers_jac_digging_s(q, u, p)
     return s0_0 + s1_0, s0_1 + s1_1
-
-
-def _drivers_nu_oscillation(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'."""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    out = _zeros(4, q, u)
-    out[0] = -(sin(c0)*upper_qz + cos(c0)*upper_qw)*ud0
-    out[1] = ud1
-    out[2] = ud2
-    out[3] = ud3
-    return out
 
 
 def nu_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows)."""
-    return _join(80, _drivers_nu_oscillation(q, u, ud, p))
-
-
-def _drivers_nu_oscillation_s(q, u, ud, p):
-    """nu of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, _, _, _ = u
-    ud0, ud1, ud2, ud3 = ud
-    c0 = (1/2)*u0
-    return [-(math.sin(c0)*upper_qz + math.cos(c0)*upper_qw)*ud0, ud1, ud2, ud3]
+    return _join(80, _drivers_nu_digging(q, u, ud, p))
 
 
 def nu_s_oscillation(q, u, ud, p):
     """nu = -Phi_t of case 'oscillation' (zero in the joint rows). At one configuration (lists of floats)."""
-    s1_0 = _drivers_nu_oscillation_s(q, u, ud, p)
+    s1_0 = _drivers_nu_digging_s(q, u, ud, p)
     return [0.0] * 80 + s1_0
-
-
-def _drivers_gamma_oscillation(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    out = _zeros(4, q, u)
-    out[0] = -2*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*ud0**2 - (c2*upper_qz + c1*upper_qw)*udd0
-    out[1] = -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1
-    out[2] = -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2
-    out[3] = -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3
-    return out
 
 
 def gamma_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'."""
-    return _join(_joints_gamma(q, v, p), _drivers_gamma_oscillation(q, v, u, ud, udd, p))
-
-
-def _drivers_gamma_oscillation_s(q, v, u, ud, udd, p):
-    """gamma of the driver rows of case 'oscillation'. (one configuration, lists of floats)"""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
-    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
-    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
-    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = math.cos(c0)
-    c2 = math.sin(c0)
-    c3 = (1/2)*upper_qz
-    c4 = c1*c3
-    c5 = (1/2)*c2
-    c6 = c5*upper_qw
-    c7 = (1/2)*upper_qw
-    c8 = (1/2)*upper_qx
-    c9 = (1/2)*upper_qy
-    c10 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
-    c11 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
-    c12 = -c11 + c10
-    c13 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
-    c14 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
-    c15 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
-    c16 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
-    c17 = -c16 + c15
-    c18 = -c13 + c14
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c21 = -c20 + c19
-    c22 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c23 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c24 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c25 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c26 = -c25 + c24
-    c27 = -c22 + c23
-    c28 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
-    c29 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c30 = -c29 + c28
-    c31 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c32 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
-    c33 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
-    c34 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c35 = -c34 + c33
-    c36 = -c31 + c32
-    return [-2.0*ud0*((-c4 + c6)*v_upper_theta_z + (-c1*c9 - c2*c8)*v_upper_theta_y + (-c1*c8 + c5*upper_qy)*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-c9*v_upper_theta_z + c3*v_upper_theta_y + c7*v_upper_theta_x) + c1*v_upper_theta_z*(-c3*v_upper_theta_z - c9*v_upper_theta_y - c8*v_upper_theta_x) + c2*v_upper_theta_z*(-c8*v_upper_theta_y + c9*v_upper_theta_x + c7*v_upper_theta_z) - (-c2*v_upper_theta_y - c1*v_upper_theta_x)*(-c3*v_upper_theta_x + c8*v_upper_theta_z + c7*v_upper_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*upper_qz + c1*upper_qw)*udd0, -(-v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z)*c17 - (-v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y)*c18 - c18*v_boom_cyl_l_rod_y - (-v_boom_cyl_l_barrel_x + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_x)*c12 - c17*v_boom_cyl_l_rod_z - (-c15 + c16)*v_boom_cyl_l_barrel_z - (-c14 + c13)*v_boom_cyl_l_barrel_y - (c11 - c10)*v_boom_cyl_l_barrel_x - c12*v_boom_cyl_l_rod_x + udd1, -(-v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z)*c26 - (-v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_y)*c27 - c27*v_arm_cyl_rod_y - (-v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x)*c21 - c26*v_arm_cyl_rod_z - (-c24 + c25)*v_arm_cyl_barrel_z - (-c23 + c22)*v_arm_cyl_barrel_y - (c20 - c19)*v_arm_cyl_barrel_x - c21*v_arm_cyl_rod_x + udd2, -(-v_bucket_cyl_barrel_z + (bucket_cyl_barrel_y - bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_x + (-bucket_cyl_barrel_x + bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_z)*c35 - (-v_bucket_cyl_barrel_y + (bucket_cyl_barrel_x - bucket_cyl_rod_x)*v_bucket_cyl_barrel_theta_z + (-bucket_cyl_barrel_z + bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_rod_y)*c36 - c36*v_bucket_cyl_rod_y - (-v_bucket_cyl_barrel_x + (-bucket_cyl_barrel_y + bucket_cyl_rod_y)*v_bucket_cyl_barrel_theta_z + (bucket_cyl_barrel_z - bucket_cyl_rod_z)*v_bucket_cyl_barrel_theta_y + v_bucket_cyl_rod_x)*c30 - c35*v_bucket_cyl_rod_z - (-c33 + c34)*v_bucket_cyl_barrel_z - (-c32 + c31)*v_bucket_cyl_barrel_y - (c29 - c28)*v_bucket_cyl_barrel_x - c30*v_bucket_cyl_rod_x + udd3]
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
 def gamma_s_oscillation(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'oscillation'. At one configuration (lists of floats)."""
     s0_0 = _joints_gamma_s(q, v, p)
-    s1_0 = _drivers_gamma_oscillation_s(q, v, u, ud, udd, p)
+    s1_0 = _drivers_gamma_digging_s(q, v, u, ud, udd, p)
     return s0_0 + s1_0
 
 
@@ -15972,323 +12610,19 @@ def input_ranges_oscillation(span):
     return out
 
 
-def _drivers_phi_p_oscillation(q, u, p):
-    """Phi_p values of the driver rows of case 'oscillation'."""
-    out = _zeros(0, q, u)
-    return out
-
-
 def phi_p_oscillation(q, u, p):
     """Phi_p = dPhi/dp (n_p columns) of case 'oscillation': values at phi_p_rows, phi_p_cols."""
-    return _join(_joints_phi_p(q, p), _drivers_phi_p_oscillation(q, u, p))
-
-
-def _drivers_dvel_oscillation(q, v, u, ud, p):
-    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'oscillation'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = (1/2)*u0
-    c1 = cos(c0)
-    c2 = (1/2)*(-c1*v_upper_theta_z + c1*ud0)
-    c3 = sin(c0)
-    c4 = (1/2)*(-c1*v_upper_theta_x - c3*v_upper_theta_y)
-    c5 = (1/2)*(-c3*v_upper_theta_x + c1*v_upper_theta_y)
-    c6 = (1/2)*(-c3*v_upper_theta_z + c3*ud0)
-    c7 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c8 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c9 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c10 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c11 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c12 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c13 = -v_boom_cyl_l_barrel_y + (boom_cyl_l_barrel_x - boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_z + (-boom_cyl_l_barrel_z + boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c14 = -v_boom_cyl_l_barrel_z + (boom_cyl_l_barrel_y - boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_z + (-boom_cyl_l_barrel_x + boom_cyl_l_rod_x)*v_boom_cyl_l_barrel_theta_y
-    c15 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x + (boom_cyl_l_barrel_z - boom_cyl_l_rod_z)*v_boom_cyl_l_barrel_theta_y + (-boom_cyl_l_barrel_y + boom_cyl_l_rod_y)*v_boom_cyl_l_barrel_theta_z
-    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c17 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c19 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c20 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c21 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c22 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + (arm_cyl_barrel_x - arm_cyl_rod_x)*v_arm_cyl_barrel_theta_z + (-arm_cyl_barrel_z + arm_cyl_rod_z)*v_arm_cyl_barrel_theta_x
-    c23 = -v_arm_cyl_barrel_z + (arm_cyl_barrel_y - arm_cyl_rod_y)*v_arm_cyl_barrel_theta_x + (-arm_cyl_barrel_x + arm_cyl_rod_x)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c24 = -v_arm_cyl_barrel_x + (-arm_cyl_barrel_y + arm_cyl_rod_y)*v_arm_cyl_barrel_theta_z + (arm_cyl_barrel_z - arm_cyl_rod_z)*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_x
-    c25 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c26 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c27 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c28 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c29 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c30 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c31 = -v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_z*(bucket_cyl_barrel_x - bucket_cyl_rod_x) + v_bucket_cyl_barrel_theta_x*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) + v_bucket_cyl_rod_y
-    c32 = -v_bucket_cyl_barrel_z + v_bucket_cyl_barrel_theta_x*(bucket_cyl_barrel_y - bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + v_bucket_cyl_rod_z
-    c33 = -v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + v_bucket_cyl_barrel_theta_y*(bucket_cyl_barrel_z - bucket_cyl_rod_z) + v_bucket_cyl_rod_x
-    out = _zeros(30, q, u)
-    out[0] = c6*upper_qy + c5*upper_qw - c4*upper_qz - c2*upper_qx
-    out[1] = -c6*upper_qx + c4*upper_qw + c5*upper_qz - c2*upper_qy
-    out[2] = c4*upper_qx - c5*upper_qy + c6*upper_qw - c2*upper_qz
-    out[3] = c8 - c7
-    out[4] = -c10 + c9
-    out[5] = c12 - c11
-    out[6] = c14*boom_cyl_l_barrel_a10 - c13*boom_cyl_l_barrel_a20
-    out[7] = -c14*boom_cyl_l_barrel_a00 + c15*boom_cyl_l_barrel_a20
-    out[8] = c13*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
-    out[9] = -c8 + c7
-    out[10] = c10 - c9
-    out[11] = -c12 + c11
-    out[12] = -c17 + c16
-    out[13] = c19 - c18
-    out[14] = c21 - c20
-    out[15] = c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_a20
-    out[16] = -c23*arm_cyl_barrel_a00 + c24*arm_cyl_barrel_a20
-    out[17] = c22*arm_cyl_barrel_a00 - c24*arm_cyl_barrel_a10
-    out[18] = c17 - c16
-    out[19] = -c19 + c18
-    out[20] = -c21 + c20
-    out[21] = -c26 + c25
-    out[22] = c28 - c27
-    out[23] = c30 - c29
-    out[24] = c32*bucket_cyl_barrel_a10 - c31*bucket_cyl_barrel_a20
-    out[25] = -c32*bucket_cyl_barrel_a00 + c33*bucket_cyl_barrel_a20
-    out[26] = c31*bucket_cyl_barrel_a00 - c33*bucket_cyl_barrel_a10
-    out[27] = c26 - c25
-    out[28] = -c28 + c27
-    out[29] = -c30 + c29
-    return out
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
 
 
 def dvel_oscillation(q, v, u, ud, p):
     """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'oscillation': values at dvel_rows, dvel_cols."""
-    return _join(_joints_dvel(q, v, p), _drivers_dvel_oscillation(q, v, u, ud, p))
-
-
-def _drivers_dacc_oscillation(q, v, a, u, ud, udd, p):
-    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'oscillation'."""
-    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
-    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
-    u0, _, _, _ = u
-    ud0, _, _, _ = ud
-    udd0, _, _, _ = udd
-    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    c0 = ud0**2
-    c1 = (1/2)*u0
-    c2 = sin(c1)
-    c3 = (1/2)*c2
-    c4 = cos(c1)
-    c5 = c4*v_upper_theta_y
-    c6 = c2*v_upper_theta_x
-    c7 = (1/2)*(-c6 + c5)
-    c8 = c4*v_upper_theta_x
-    c9 = c2*v_upper_theta_y
-    c10 = (1/2)*(-c9 - c8)
-    c11 = ud0*v_upper_theta_z
-    c12 = v_upper_theta_z**2
-    c13 = (1/2)*(-c3*c12 - c4*dv_upper_theta_z + c10*v_upper_theta_y + c4*udd0 + c7*v_upper_theta_x + c2*c11 - c0*c3)
-    c14 = (1/2)*c5
-    c15 = (1/2)*c6
-    c16 = 2*ud0
-    c17 = -c4*dv_upper_theta_x + c14*v_upper_theta_z - c15*v_upper_theta_z + (c15 - c14)*c16 - c2*dv_upper_theta_y - c7*v_upper_theta_z
-    c18 = (1/2)*upper_qz
-    c19 = (1/2)*c9
-    c20 = (1/2)*c8
-    c21 = (1/2)*(-c2*dv_upper_theta_x + c4*dv_upper_theta_y + c20*v_upper_theta_z + (-c20 - c19)*c16 + c19*v_upper_theta_z + c10*v_upper_theta_z)
-    c22 = (1/2)*c4
-    c23 = (1/2)*(c2*udd0 - c4*c11 - c10*v_upper_theta_x - c2*dv_upper_theta_z + c22*c12 + c7*v_upper_theta_y + c0*c22)
-    c24 = (1/2)*upper_qw
-    c25 = (1/2)*upper_qx
-    c26 = -c18*v_upper_theta_x + c25*v_upper_theta_z + c24*v_upper_theta_y
-    c27 = (1/2)*upper_qy
-    c28 = -c27*v_upper_theta_z + c18*v_upper_theta_y + c24*v_upper_theta_x
-    c29 = c3*upper_qy
-    c30 = c22*upper_qx
-    c31 = c3*upper_qx
-    c32 = c22*upper_qy
-    c33 = c3*upper_qw
-    c34 = c22*upper_qz
-    c35 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_z
-    c36 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a00
-    c37 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a20
-    c38 = -c37 + c36
-    c39 = c38*v_boom_cyl_l_barrel_theta_z
-    c40 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_y
-    c41 = v_boom_cyl_l_barrel_theta_x*boom_cyl_l_barrel_a10
-    c42 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a00
-    c43 = -c42 + c41
-    c44 = c43*v_boom_cyl_l_barrel_theta_y
-    c45 = boom_cyl_l_barrel_a20*dv_boom_cyl_l_barrel_theta_x
-    c46 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_z
-    c47 = c43*v_boom_cyl_l_barrel_theta_x
-    c48 = v_boom_cyl_l_barrel_theta_y*boom_cyl_l_barrel_a20
-    c49 = v_boom_cyl_l_barrel_theta_z*boom_cyl_l_barrel_a10
-    c50 = -c49 + c48
-    c51 = c50*v_boom_cyl_l_barrel_theta_z
-    c52 = boom_cyl_l_barrel_a00*dv_boom_cyl_l_barrel_theta_y
-    c53 = c38*v_boom_cyl_l_barrel_theta_x
-    c54 = boom_cyl_l_barrel_a10*dv_boom_cyl_l_barrel_theta_x
-    c55 = c50*v_boom_cyl_l_barrel_theta_y
-    c56 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
-    c57 = -boom_cyl_l_rod_z + boom_cyl_l_barrel_z
-    c58 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
-    c59 = c57*v_boom_cyl_l_barrel_theta_y + c58*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x
-    c60 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
-    c61 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
-    c62 = c61*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + c60*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_rod_z
-    c63 = -boom_cyl_l_rod_x + boom_cyl_l_barrel_x
-    c64 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_z + c62*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_z + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_x + c63*dv_boom_cyl_l_barrel_theta_z - c59*v_boom_cyl_l_barrel_theta_z + c56*dv_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_x
-    c65 = c63*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_y + c56*v_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_rod_y
-    c66 = -dv_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_z + c60*dv_boom_cyl_l_barrel_theta_y - c65*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_x + c59*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_y + c61*dv_boom_cyl_l_barrel_theta_x + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_x
-    c67 = -dv_boom_cyl_l_barrel_x + c58*dv_boom_cyl_l_barrel_theta_z + c65*v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_z + c57*dv_boom_cyl_l_barrel_theta_y - c62*v_boom_cyl_l_barrel_theta_y + v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_y + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_z + dv_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_y
-    c68 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_z
-    c69 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_y
-    c70 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
-    c71 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
-    c72 = -c71 + c70
-    c73 = c72*v_arm_cyl_barrel_theta_y
-    c74 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
-    c75 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
-    c76 = -c75 + c74
-    c77 = c76*v_arm_cyl_barrel_theta_z
-    c78 = arm_cyl_barrel_a20*dv_arm_cyl_barrel_theta_x
-    c79 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_z
-    c80 = c72*v_arm_cyl_barrel_theta_x
-    c81 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
-    c82 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
-    c83 = -c82 + c81
-    c84 = c83*v_arm_cyl_barrel_theta_z
-    c85 = arm_cyl_barrel_a00*dv_arm_cyl_barrel_theta_y
-    c86 = c76*v_arm_cyl_barrel_theta_x
-    c87 = arm_cyl_barrel_a10*dv_arm_cyl_barrel_theta_x
-    c88 = c83*v_arm_cyl_barrel_theta_y
-    c89 = -arm_cyl_rod_z + arm_cyl_barrel_z
-    c90 = -arm_cyl_barrel_y + arm_cyl_rod_y
-    c91 = c90*v_arm_cyl_barrel_theta_z + c89*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x
-    c92 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c93 = -arm_cyl_barrel_x + arm_cyl_rod_x
-    c94 = c92*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + c93*v_arm_cyl_barrel_theta_y + v_arm_cyl_rod_z
-    c95 = -arm_cyl_rod_x + arm_cyl_barrel_x
-    c96 = -arm_cyl_barrel_z + arm_cyl_rod_z
-    c97 = -dv_arm_cyl_barrel_y + c96*dv_arm_cyl_barrel_theta_x + c95*dv_arm_cyl_barrel_theta_z + dv_arm_cyl_rod_y + c94*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_z - v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - c91*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z
-    c98 = c95*v_arm_cyl_barrel_theta_z + c96*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y
-    c99 = -dv_arm_cyl_barrel_z + c92*dv_arm_cyl_barrel_theta_x + dv_arm_cyl_rod_z + c91*v_arm_cyl_barrel_theta_y - c98*v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_x + v_arm_cyl_rod_x*v_arm_cyl_barrel_theta_y + c93*dv_arm_cyl_barrel_theta_y + v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y
-    c100 = -dv_arm_cyl_barrel_x + c89*dv_arm_cyl_barrel_theta_y + c98*v_arm_cyl_barrel_theta_z + c90*dv_arm_cyl_barrel_theta_z - v_arm_cyl_rod_z*v_arm_cyl_barrel_theta_y + dv_arm_cyl_rod_x + v_arm_cyl_rod_y*v_arm_cyl_barrel_theta_z + v_arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y - c94*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z
-    c101 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_y
-    c102 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_z
-    c103 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a00
-    c104 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a20
-    c105 = -c104 + c103
-    c106 = c105*v_bucket_cyl_barrel_theta_z
-    c107 = v_bucket_cyl_barrel_theta_x*bucket_cyl_barrel_a10
-    c108 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a00
-    c109 = -c108 + c107
-    c110 = c109*v_bucket_cyl_barrel_theta_y
-    c111 = bucket_cyl_barrel_a20*dv_bucket_cyl_barrel_theta_x
-    c112 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_z
-    c113 = v_bucket_cyl_barrel_theta_y*bucket_cyl_barrel_a20
-    c114 = v_bucket_cyl_barrel_theta_z*bucket_cyl_barrel_a10
-    c115 = -c114 + c113
-    c116 = c115*v_bucket_cyl_barrel_theta_z
-    c117 = c109*v_bucket_cyl_barrel_theta_x
-    c118 = bucket_cyl_barrel_a00*dv_bucket_cyl_barrel_theta_y
-    c119 = c115*v_bucket_cyl_barrel_theta_y
-    c120 = bucket_cyl_barrel_a10*dv_bucket_cyl_barrel_theta_x
-    c121 = c105*v_bucket_cyl_barrel_theta_x
-    c122 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c123 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    c124 = c123*v_bucket_cyl_barrel_theta_y + c122*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z
-    c125 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
-    c126 = -bucket_cyl_rod_x + bucket_cyl_barrel_x
-    c127 = -bucket_cyl_rod_z + bucket_cyl_barrel_z
-    c128 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
-    c129 = c127*v_bucket_cyl_barrel_theta_y + c128*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x
-    c130 = -dv_bucket_cyl_barrel_y - c129*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_z + c125*dv_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_z + c124*v_bucket_cyl_barrel_theta_x + c126*dv_bucket_cyl_barrel_theta_z + dv_bucket_cyl_rod_y
-    c131 = c126*v_bucket_cyl_barrel_theta_z + c125*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y
-    c132 = -dv_bucket_cyl_barrel_z + c123*dv_bucket_cyl_barrel_theta_y + c129*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_x + c122*dv_bucket_cyl_barrel_theta_x - c131*v_bucket_cyl_barrel_theta_x + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_x + dv_bucket_cyl_rod_z
-    c133 = c127*dv_bucket_cyl_barrel_theta_y + dv_bucket_cyl_rod_x + c131*v_bucket_cyl_barrel_theta_z - v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_z + v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_y + c128*dv_bucket_cyl_barrel_theta_z + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_z - dv_bucket_cyl_barrel_x - v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_y - c124*v_bucket_cyl_barrel_theta_y
-    out = _zeros(60, q, u)
-    out[0] = c23*upper_qy - c18*c17 + c21*upper_qw - c13*upper_qx
-    out[1] = -c23*upper_qx + c24*c17 + c21*upper_qz - c13*upper_qy
-    out[2] = c23*upper_qw - c21*upper_qy + c25*c17 - c13*upper_qz
-    out[3] = c30*v_upper_theta_z - c29*v_upper_theta_z + c7*upper_qw + (-c30 + c29)*c16 - c2*c28 - c10*upper_qz - c4*c26
-    out[4] = c32*v_upper_theta_z + c31*v_upper_theta_z + c10*upper_qw - c2*c26 + c7*upper_qz + (-c32 - c31)*c16 + c4*c28
-    out[5] = c34*v_upper_theta_z - c33*v_upper_theta_z - c4*(-c18*v_upper_theta_z - c27*v_upper_theta_y - c25*v_upper_theta_x) - c2*(-c25*v_upper_theta_y + c27*v_upper_theta_x + c24*v_upper_theta_z) + (-c34 + c33)*c16 + c10*upper_qx - c7*upper_qy
-    out[6] = -c44 - c40 + c39 + c35
-    out[7] = -c51 + c47 - c46 + c45
-    out[8] = c55 - c54 - c53 + c52
-    out[9] = c66*boom_cyl_l_barrel_a10 - c64*boom_cyl_l_barrel_a20
-    out[10] = -c66*boom_cyl_l_barrel_a00 + c67*boom_cyl_l_barrel_a20
-    out[11] = c64*boom_cyl_l_barrel_a00 - c67*boom_cyl_l_barrel_a10
-    out[12] = c44 + c40 - c39 - c35
-    out[13] = c51 - c47 + c46 - c45
-    out[14] = -c55 + c54 + c53 - c52
-    out[15] = c49 - c48 - c50
-    out[16] = -c38 + c37 - c36
-    out[17] = -c43 + c42 - c41
-    out[18] = c38*c56 - c65*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + c43*c61 + c62*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a10 + v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a20
-    out[19] = -boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z + c59*boom_cyl_l_barrel_a20 + c43*c60 - c62*boom_cyl_l_barrel_a00 + v_boom_cyl_l_barrel_z*boom_cyl_l_barrel_a00 - v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a20 + c57*c50 + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x
-    out[20] = c38*c63 + v_boom_cyl_l_barrel_x*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x + c65*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y - c59*boom_cyl_l_barrel_a10 + c58*c50 - v_boom_cyl_l_barrel_y*boom_cyl_l_barrel_a00
-    out[21] = 2*c48 - 2*c49
-    out[22] = 2*c36 - 2*c37
-    out[23] = 2*c41 - 2*c42
-    out[24] = c77 - c73 - c69 + c68
-    out[25] = -c84 + c80 - c79 + c78
-    out[26] = c88 - c87 - c86 + c85
-    out[27] = c99*arm_cyl_barrel_a10 - c97*arm_cyl_barrel_a20
-    out[28] = -c99*arm_cyl_barrel_a00 + c100*arm_cyl_barrel_a20
-    out[29] = c97*arm_cyl_barrel_a00 - c100*arm_cyl_barrel_a10
-    out[30] = -c77 + c73 + c69 - c68
-    out[31] = c84 - c80 + c79 - c78
-    out[32] = -c88 + c87 + c86 - c85
-    out[33] = -c83 + c82 - c81
-    out[34] = -c76 + c75 - c74
-    out[35] = -c72 + c71 - c70
-    out[36] = c72*c92 + c94*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z + c76*c96 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c98*arm_cyl_barrel_a20 - arm_cyl_barrel_a20*v_arm_cyl_rod_y
-    out[37] = c72*c93 + c91*arm_cyl_barrel_a20 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - c94*arm_cyl_barrel_a00 + c89*c83 + arm_cyl_barrel_a20*v_arm_cyl_rod_x + arm_cyl_barrel_a00*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
-    out[38] = c76*c95 + c98*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y + c90*c83 + arm_cyl_barrel_a00*v_arm_cyl_rod_y - c91*arm_cyl_barrel_a10 - arm_cyl_barrel_a10*v_arm_cyl_rod_x + arm_cyl_barrel_a10*v_arm_cyl_barrel_x
-    out[39] = 2*c81 - 2*c82
-    out[40] = 2*c74 - 2*c75
-    out[41] = 2*c70 - 2*c71
-    out[42] = -c110 + c106 + c102 - c101
-    out[43] = c117 - c116 - c112 + c111
-    out[44] = -c121 - c120 + c119 + c118
-    out[45] = c132*bucket_cyl_barrel_a10 - c130*bucket_cyl_barrel_a20
-    out[46] = -c132*bucket_cyl_barrel_a00 + c133*bucket_cyl_barrel_a20
-    out[47] = c130*bucket_cyl_barrel_a00 - c133*bucket_cyl_barrel_a10
-    out[48] = c110 - c106 - c102 + c101
-    out[49] = -c117 + c116 + c112 - c111
-    out[50] = c121 + c120 - c119 - c118
-    out[51] = -c115 + c114 - c113
-    out[52] = -c105 + c104 - c103
-    out[53] = c108 - c107 - c109
-    out[54] = c105*c125 - c131*bucket_cyl_barrel_a20 + v_bucket_cyl_rod_z*bucket_cyl_barrel_a10 + c109*c122 - v_bucket_cyl_rod_y*bucket_cyl_barrel_a20 - v_bucket_cyl_barrel_z*bucket_cyl_barrel_a10 + v_bucket_cyl_barrel_y*bucket_cyl_barrel_a20 + c124*bucket_cyl_barrel_a10
-    out[55] = c127*c115 - c124*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_z*bucket_cyl_barrel_a00 + c129*bucket_cyl_barrel_a20 + v_bucket_cyl_barrel_z*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_x*bucket_cyl_barrel_a20 + c109*c123 - v_bucket_cyl_barrel_x*bucket_cyl_barrel_a20
-    out[56] = c128*c115 - c129*bucket_cyl_barrel_a10 + c105*c126 + v_bucket_cyl_barrel_x*bucket_cyl_barrel_a10 + c131*bucket_cyl_barrel_a00 + v_bucket_cyl_rod_y*bucket_cyl_barrel_a00 - v_bucket_cyl_barrel_y*bucket_cyl_barrel_a00 - v_bucket_cyl_rod_x*bucket_cyl_barrel_a10
-    out[57] = 2*c113 - 2*c114
-    out[58] = 2*c103 - 2*c104
-    out[59] = 2*c107 - 2*c108
-    return out
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
 
 
 def dacc_oscillation(q, v, a, u, ud, udd, p):
     """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'oscillation': values at dacc_rows, dacc_cols."""
-    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_oscillation(q, v, a, u, ud, udd, p))
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
 
 
 CASES = {

@@ -78,7 +78,9 @@ class _Module:
         self.scalar_sections = scalar_sections(description)
         self.functions: list[_Function] = []
         self.blocks: dict[tuple[str, str], Block] = {}
-        self.made: set[str] = set()  # functions made once for every case (section and scalar functions)
+        self.made: dict[str, str] = {}  # functions made once for every case (section and scalar): name -> the one to call
+        self.by_text: dict[tuple, list[_Function]] = {}  # a section's functions by their text (shared)
+        self.also: dict[str, tuple[str, list[str]]] = {}  # a shared function: its own doc, the sections it also computes
 
     def block(self, name: str, prefix: str = "c") -> Block:
         """The section's printed block, temporaries ``<prefix>0, ...`` (functions computing several
@@ -159,14 +161,36 @@ class _Module:
             return "_zeros({m}, q, u)" if "u" in slots else "_zeros({m}, q, ())"
         return "np.zeros(({m},) + np.shape(t))" if slots == ("t",) else f"np.zeros(({{m}},) + np.shape({slots[0]}[0]))"
 
+    def shared(self, name: str, first: int, section: str) -> str:
+        """The functions made from ``first`` on (one function's, or its parts'), for ``name``: kept, or
+        dropped where another's are the same text but for their names (the same drivers in several
+        cases: the excavator's seven digging-like cases), whose doc then names this section too and
+        which is called instead (as the C backend's _Model.section). Returns the name to call."""
+        made = self.functions[first:]
+        text = tuple((f.kind, tuple(f.args), tuple(f.prologue), tuple(f.outputs), f.allocate, len(f.parts),
+                      tuple(r.replace(name, "<name>") for r in f.results), f.result) for f in made)  # (parts are name_part<k>)
+        if text not in self.by_text:
+            self.by_text[text] = made
+            self.made[name] = name
+            return name
+        del self.functions[first:]
+        kept = self.by_text[text][0]
+        doc, others = self.also.setdefault(kept.name, (kept.doc, []))
+        others.append(section)
+        kept.doc = f"{doc} The same function serves {', '.join(others)} (the same text)."
+        self.made[name] = kept.name
+        return kept.name
+
     def section_array(self, section: str, case: str | None) -> str:
-        """The NumPy function of one section (``_<section>``, made once); returns its name."""
+        """The NumPy function of one section (``_<section>``, made once); returns the name to call
+        (:meth:`shared`)."""
         name = f"_{section}"
         if name not in self.made:
-            self.made.add(name)
             s = self.d.sections[section]
+            first = len(self.functions)
             self.array(name, s.doc, section, case, self.allocation(s.slots))
-        return name
+            self.shared(name, first, section)
+        return self.made[name]
 
     def enclosure(self, function: str, doc: str, enclosure: Enclosure) -> None:
         """The NumPy function ``function(span)`` of an interval program: ``span`` = (t0, t1), two
@@ -220,12 +244,13 @@ class _Module:
                 continue
             name = "_" + "_".join(part for _, part in named) + "_s"
             if name not in self.made:
-                self.made.add(name)
                 doc = "; ".join(self.d.sections[part].doc for _, part in named) + " (one configuration, lists of floats)"
+                first = len(self.functions)
                 self.scalar(name, doc, [part for _, part in named], case)
+                self.shared(name, first, " and ".join(part for _, part in named))
             values = [f"s{position}_{i}" for i, _ in named]
             slots = ", ".join(self.d.sections[named[0][1]].slots)
-            lines.append(f"{', '.join(values)} = {name}({slots})")
+            lines.append(f"{', '.join(values)} = {self.made[name]}({slots})")
             for (i, _), value in zip(named, values):
                 pieces[i].append(value)
         result = ", ".join(" + ".join(p) for p in pieces)
