@@ -17,6 +17,19 @@ typedef struct kinegen_interval {
     double lo, hi;
 } kinegen_interval;
 
+/* The larger helpers the generated code calls: not inlined where the compiler can be told so. Inlined
+ * into the input_ranges kernels (hundreds of calls each), they took the excavator's nine kernels
+ * 1.36-1.39 CPU-s to compile at the runtime's -O1 -- a third of its first library's compile -- against
+ * 0.52 s as calls, which cost 0.45 % of a certified step's instructions (docs/performance.md). The sum
+ * and the integer power stay inline (as a call, pow with an exponent that is no constant: +2.2 % of a
+ * step). The same operations either way: the same bits. "unused": a part that calls none of them
+ * compiles without a warning. */
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_IV_HELPER __attribute__((noinline, unused))
+#else
+#define KINEGEN_IV_HELPER inline
+#endif
+
 #define KINEGEN_IV_RELATIVE 1.7763568394002505e-15 /* 2^-49 */
 #define KINEGEN_IV_ABSOLUTE 1e-300
 #define KINEGEN_IV_PI 3.141592653589793
@@ -50,13 +63,13 @@ static inline kinegen_interval kinegen_iv_neg(kinegen_interval a) {
     return kinegen_iv_const(-a.hi, -a.lo);
 }
 
-static inline kinegen_interval kinegen_iv_mul(kinegen_interval a, kinegen_interval b) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_mul(kinegen_interval a, kinegen_interval b) {
     /* fmin/fmax skip the NaN of 0 * inf; all four NaN: unbounded (kinegen_iv_out) */
     double p0 = a.lo * b.lo, p1 = a.lo * b.hi, p2 = a.hi * b.lo, p3 = a.hi * b.hi;
     return kinegen_iv_out(kinegen_iv_min(kinegen_iv_min(p0, p1), kinegen_iv_min(p2, p3)), kinegen_iv_max(kinegen_iv_max(p0, p1), kinegen_iv_max(p2, p3)));
 }
 
-static inline kinegen_interval kinegen_iv_inv(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_inv(kinegen_interval a) {
     if (a.lo > 0.0 || a.hi < 0.0) return kinegen_iv_out(1.0 / a.hi, 1.0 / a.lo);
     return kinegen_iv_const(-INFINITY, INFINITY);
 }
@@ -70,41 +83,41 @@ static inline kinegen_interval kinegen_iv_powi(kinegen_interval a, int n) {
 
 /* a^r, r a real exponent in [r_lo, r_hi], a >= 0 (the real function's domain): monotone in a and in r,
  * so its range is at the corners */
-static inline kinegen_interval kinegen_iv_powr(kinegen_interval a, double r_lo, double r_hi) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_powr(kinegen_interval a, double r_lo, double r_hi) {
     double x = kinegen_iv_max(a.lo, 0.0), y = kinegen_iv_max(a.hi, 0.0);
     double c0 = pow(x, r_lo), c1 = pow(x, r_hi), c2 = pow(y, r_lo), c3 = pow(y, r_hi);
     return kinegen_iv_out(kinegen_iv_min(kinegen_iv_min(c0, c1), kinegen_iv_min(c2, c3)),
                           kinegen_iv_max(kinegen_iv_max(c0, c1), kinegen_iv_max(c2, c3)));
 }
 
-static inline kinegen_interval kinegen_iv_sqrt(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_sqrt(kinegen_interval a) {
     return kinegen_iv_out(sqrt(kinegen_iv_max(a.lo, 0.0)), sqrt(kinegen_iv_max(a.hi, 0.0)));
 }
 
-static inline kinegen_interval kinegen_iv_exp(kinegen_interval a) { return kinegen_iv_out(exp(a.lo), exp(a.hi)); }
-static inline kinegen_interval kinegen_iv_log(kinegen_interval a) { return kinegen_iv_out(log(kinegen_iv_max(a.lo, 0.0)), log(a.hi)); }
-static inline kinegen_interval kinegen_iv_atan(kinegen_interval a) { return kinegen_iv_out(atan(a.lo), atan(a.hi)); }
-static inline kinegen_interval kinegen_iv_sinh(kinegen_interval a) { return kinegen_iv_out(sinh(a.lo), sinh(a.hi)); }
-static inline kinegen_interval kinegen_iv_tanh(kinegen_interval a) { return kinegen_iv_out(tanh(a.lo), tanh(a.hi)); }
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_exp(kinegen_interval a) { return kinegen_iv_out(exp(a.lo), exp(a.hi)); }
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_log(kinegen_interval a) { return kinegen_iv_out(log(kinegen_iv_max(a.lo, 0.0)), log(a.hi)); }
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_atan(kinegen_interval a) { return kinegen_iv_out(atan(a.lo), atan(a.hi)); }
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_sinh(kinegen_interval a) { return kinegen_iv_out(sinh(a.lo), sinh(a.hi)); }
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_tanh(kinegen_interval a) { return kinegen_iv_out(tanh(a.lo), tanh(a.hi)); }
 
 static inline double kinegen_iv_clip(double x) { return x < -1.0 ? -1.0 : (x > 1.0 ? 1.0 : x); }
-static inline kinegen_interval kinegen_iv_asin(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_asin(kinegen_interval a) {
     return kinegen_iv_out(asin(kinegen_iv_clip(a.lo)), asin(kinegen_iv_clip(a.hi)));
 }
-static inline kinegen_interval kinegen_iv_acos(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_acos(kinegen_interval a) {
     return kinegen_iv_out(acos(kinegen_iv_clip(a.hi)), acos(kinegen_iv_clip(a.lo)));
 }
 
-static inline kinegen_interval kinegen_iv_sign(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_sign(kinegen_interval a) {
     return kinegen_iv_const(a.lo > 0.0 ? 1.0 : (a.lo < 0.0 ? -1.0 : 0.0), a.hi > 0.0 ? 1.0 : (a.hi < 0.0 ? -1.0 : 0.0));
 }
 
-static inline kinegen_interval kinegen_iv_abs(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_abs(kinegen_interval a) {
     double lo = fabs(a.lo), hi = fabs(a.hi);
     return kinegen_iv_const(a.lo < 0.0 && a.hi > 0.0 ? 0.0 : kinegen_iv_min(lo, hi), kinegen_iv_max(lo, hi));
 }
 
-static inline kinegen_interval kinegen_iv_cosh(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_cosh(kinegen_interval a) {
     double lo = cosh(a.lo), hi = cosh(a.hi);
     return kinegen_iv_out(a.lo < 0.0 && a.hi > 0.0 ? 1.0 : kinegen_iv_min(lo, hi), kinegen_iv_max(lo, hi));
 }
@@ -123,15 +136,15 @@ static inline kinegen_interval kinegen_iv_periodic(double fa, double fb, kinegen
     return kinegen_iv_out(lo, hi);
 }
 
-static inline kinegen_interval kinegen_iv_sin(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_sin(kinegen_interval a) {
     return kinegen_iv_periodic(sin(a.lo), sin(a.hi), a, KINEGEN_IV_PI / 2.0, -KINEGEN_IV_PI / 2.0);
 }
 
-static inline kinegen_interval kinegen_iv_cos(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_cos(kinegen_interval a) {
     return kinegen_iv_periodic(cos(a.lo), cos(a.hi), a, 0.0, KINEGEN_IV_PI);
 }
 
-static inline kinegen_interval kinegen_iv_tan(kinegen_interval a) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_tan(kinegen_interval a) {
     if (!(a.hi - a.lo < KINEGEN_IV_PI) || kinegen_iv_reaches(a, KINEGEN_IV_PI / 2.0, KINEGEN_IV_PI))
         return kinegen_iv_const(-INFINITY, INFINITY);
     return kinegen_iv_out(tan(a.lo), tan(a.hi));
@@ -139,7 +152,7 @@ static inline kinegen_interval kinegen_iv_tan(kinegen_interval a) {
 
 /* atan2(y, x) over the box y x x: its corners' range, or [-pi, pi] where the box holds the origin or
  * crosses the negative x axis (where atan2 jumps) */
-static inline kinegen_interval kinegen_iv_atan2(kinegen_interval y, kinegen_interval x) {
+static KINEGEN_IV_HELPER kinegen_interval kinegen_iv_atan2(kinegen_interval y, kinegen_interval x) {
     if (x.lo <= 0.0 && y.lo <= 0.0 && y.hi >= 0.0) return kinegen_iv_out(-KINEGEN_IV_PI, KINEGEN_IV_PI);
     double c0 = atan2(y.lo, x.lo), c1 = atan2(y.lo, x.hi), c2 = atan2(y.hi, x.lo), c3 = atan2(y.hi, x.hi);
     return kinegen_iv_out(kinegen_iv_min(kinegen_iv_min(c0, c1), kinegen_iv_min(c2, c3)), kinegen_iv_max(kinegen_iv_max(c0, c1), kinegen_iv_max(c2, c3)));
