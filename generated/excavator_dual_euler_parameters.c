@@ -476,7 +476,7 @@ void excavator_dual_euler_parameters_compute_joints_phi(const double *q, const d
     out[107] = bucket_rz*bucket_dz + bucket_ry*bucket_dy + bucket_rx*bucket_dx + bucket_rw*bucket_dw;
 }
 
-/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
+/* Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -3043,7 +3043,7 @@ void excavator_dual_euler_parameters_compute_joints_jac_part9(const double *q, c
     out[1199] = bucket_rz;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
+/* Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double boom_cyl_l_barrel_rw = q[16];
     const double boom_cyl_l_barrel_rx = q[17];
@@ -3196,7 +3196,7 @@ void excavator_dual_euler_parameters_compute_drivers_jac_digging(const double *q
     out[49] = c18*bucket_cyl_rod_rw + c21*bucket_cyl_barrel_a00 - c16*bucket_cyl_rod_rx;
 }
 
-/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
+/* nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -5988,7 +5988,7 @@ void excavator_dual_euler_parameters_compute_joints_gamma_part9(const double *q,
     out[107] = -2.0*v_bucket_rz*v_bucket_dz - 2.0*v_bucket_ry*v_bucket_dy - 2.0*v_bucket_rx*v_bucket_dx - 2.0*v_bucket_rw*v_bucket_dw;
 }
 
-/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
+/* gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -6553,7 +6553,7 @@ void excavator_dual_euler_parameters_compute_input_ranges_digging(const double *
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
+/* Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -6583,7 +6583,7 @@ void excavator_dual_euler_parameters_compute_drivers_phi_level_cut(const double 
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
+/* Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double bucket_rw = q[104];
     const double bucket_rx = q[105];
@@ -6623,7 +6623,7 @@ void excavator_dual_euler_parameters_compute_drivers_jac_level_cut(const double 
     out[21] = c2*bucket_rz - c1*bucket_rx;
 }
 
-/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
+/* nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -6647,7 +6647,7 @@ void excavator_dual_euler_parameters_compute_drivers_nu_level_cut(const double *
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
+/* gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text). */
 void excavator_dual_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];

@@ -433,7 +433,7 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, const double 
     out[79] = c17*side_link_a20 - c16*side_link_a22 - side_link_oz + bucket_cyl_rod_oz;
 }
 
-/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
+/* Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text). */
 void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -1591,7 +1591,7 @@ void excavator_dual_quaternion_compute_joints_jac_part3(const double *q, const d
     out[426] = -1.0;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
+/* Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text). */
 void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -1718,7 +1718,7 @@ void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, cons
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
+/* nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text). */
 void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -2908,7 +2908,7 @@ void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const
     out[79] = c696*c706 + c701*c707 - c702*c708 - c705*c709;
 }
 
-/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
+/* gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text). */
 void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -3289,7 +3289,7 @@ void excavator_dual_quaternion_compute_input_ranges_digging(const double *span, 
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
+/* Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text). */
 void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -3319,7 +3319,7 @@ void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, co
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
+/* Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text). */
 void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
@@ -3357,7 +3357,7 @@ void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, co
     out[11] = c4*bucket_a12;
 }
 
-/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
+/* nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text). */
 void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
@@ -3381,7 +3381,7 @@ void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, con
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
+/* gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text). */
 void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];

@@ -404,7 +404,7 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, const double
     out[93] = -1.0 + (bucket_e3*bucket_e3) + (bucket_e2*bucket_e2) + (bucket_e1*bucket_e1) + (bucket_e0*bucket_e0);
 }
 
-/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
+/* Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text). */
 void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -1793,7 +1793,7 @@ void excavator_euler_parameters_compute_joints_jac_part4(const double *q, const 
     out[610] = 2.0*bucket_e3;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
+/* Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text). */
 void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
@@ -1880,7 +1880,7 @@ void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, con
     out[31] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
+/* nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text). */
 void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3139,7 +3139,7 @@ void excavator_euler_parameters_compute_joints_gamma_part3(const double *q, cons
     out[93] = -2.0*(v_bucket_e3*v_bucket_e3) - 2.0*(v_bucket_e2*v_bucket_e2) - 2.0*(v_bucket_e1*v_bucket_e1) - 2.0*(v_bucket_e0*v_bucket_e0);
 }
 
-/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
+/* gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text). */
 void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3509,7 +3509,7 @@ void excavator_euler_parameters_compute_input_ranges_digging(const double *span,
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
+/* Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text). */
 void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3535,7 +3535,7 @@ void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, c
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
+/* Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text). */
 void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double bucket_e0 = q[94];
     const double bucket_e1 = q[95];
@@ -3565,7 +3565,7 @@ void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, c
     out[15] = c2*bucket_e3 - c1*bucket_e1;
 }
 
-/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
+/* nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text). */
 void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
@@ -3589,7 +3589,7 @@ void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, co
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
+/* gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text). */
 void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];

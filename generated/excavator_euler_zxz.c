@@ -381,7 +381,7 @@ void excavator_euler_zxz_compute_joints_phi(const double *q, const double *p, do
     out[79] = -c17*side_link_a22 + c16*side_link_a20 - side_link_z + bucket_cyl_rod_z;
 }
 
-/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
+/* Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text). */
 void excavator_euler_zxz_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -1645,7 +1645,7 @@ void excavator_euler_zxz_compute_joints_jac_part4(const double *q, const double 
     out[412] = c548*c561;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
+/* Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text). */
 void excavator_euler_zxz_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -1771,7 +1771,7 @@ void excavator_euler_zxz_compute_drivers_jac_digging(const double *q, const doub
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
+/* nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text). */
 void excavator_euler_zxz_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -3604,7 +3604,7 @@ void excavator_euler_zxz_compute_joints_gamma_part7(const double *q, const doubl
     out[79] = -v_side_link_gamma*(-c1343*c1360 + c1347*c1368*v_side_link_beta) - (c1368*c1354 + v_side_link_beta*(-c1343*c1357 + c1355))*v_side_link_beta;
 }
 
-/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
+/* gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text). */
 void excavator_euler_zxz_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4037,7 +4037,7 @@ void excavator_euler_zxz_compute_input_ranges_digging(const double *span, double
 
 #if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
-/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
+/* Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text). */
 void excavator_euler_zxz_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4064,7 +4064,7 @@ void excavator_euler_zxz_compute_drivers_phi_level_cut(const double *q, const do
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
+/* Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text). */
 void excavator_euler_zxz_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4113,7 +4113,7 @@ void excavator_euler_zxz_compute_drivers_jac_level_cut(const double *q, const do
     out[11] = -c22*sin(bucket_alpha)*cos(bucket_beta) - c23*sin(u3);
 }
 
-/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
+/* nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text). */
 void excavator_euler_zxz_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];
@@ -4137,7 +4137,7 @@ void excavator_euler_zxz_compute_drivers_nu_level_cut(const double *q, const dou
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
+/* gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text). */
 void excavator_euler_zxz_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_alpha = q[3];
     const double upper_beta = q[4];

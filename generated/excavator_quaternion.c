@@ -423,7 +423,7 @@ void excavator_quaternion_compute_joints_phi(const double *q, const double *p, d
     out[79] = -c17*side_link_a22 + c16*side_link_a20 - side_link_z + bucket_cyl_rod_z;
 }
 
-/* Phi of the driver rows of case 'digging'. Also drivers_phi_bucket_toggle's, word for word. Also drivers_phi_bucket_stroke's, word for word. Also drivers_phi_bucket_near_toggle's, word for word. Also drivers_phi_digging_fast's, word for word. Also drivers_phi_digging_paced's, word for word. Also drivers_phi_oscillation's, word for word. */
+/* Phi of the driver rows of case 'digging'. The same function serves drivers_phi_bucket_toggle, drivers_phi_bucket_stroke, drivers_phi_bucket_near_toggle, drivers_phi_digging_fast, drivers_phi_digging_paced, drivers_phi_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -1421,7 +1421,7 @@ void excavator_quaternion_compute_joints_jac_part3(const double *q, const double
     out[402] = c283 - c284;
 }
 
-/* Phi_q values of the driver rows of case 'digging'. Also drivers_jac_bucket_toggle's, word for word. Also drivers_jac_bucket_stroke's, word for word. Also drivers_jac_bucket_near_toggle's, word for word. Also drivers_jac_digging_fast's, word for word. Also drivers_jac_digging_paced's, word for word. Also drivers_jac_oscillation's, word for word. */
+/* Phi_q values of the driver rows of case 'digging'. The same function serves drivers_jac_bucket_toggle, drivers_jac_bucket_stroke, drivers_jac_bucket_near_toggle, drivers_jac_digging_fast, drivers_jac_digging_paced, drivers_jac_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -1512,7 +1512,7 @@ void excavator_quaternion_compute_drivers_jac_digging(const double *q, const dou
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'digging'. Also drivers_nu_bucket_toggle's, word for word. Also drivers_nu_bucket_stroke's, word for word. Also drivers_nu_bucket_near_toggle's, word for word. Also drivers_nu_digging_fast's, word for word. Also drivers_nu_digging_paced's, word for word. Also drivers_nu_oscillation's, word for word. */
+/* nu of the driver rows of case 'digging'. The same function serves drivers_nu_bucket_toggle, drivers_nu_bucket_stroke, drivers_nu_bucket_near_toggle, drivers_nu_digging_fast, drivers_nu_digging_paced, drivers_nu_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -2332,7 +2332,7 @@ void excavator_quaternion_compute_joints_gamma_part2(const double *q, const doub
     out[79] = c400*c406 - c401*c406 + c402*c405 - c402*c407;
 }
 
-/* gamma of the driver rows of case 'digging'. Also drivers_gamma_bucket_toggle's, word for word. Also drivers_gamma_bucket_stroke's, word for word. Also drivers_gamma_bucket_near_toggle's, word for word. Also drivers_gamma_digging_fast's, word for word. Also drivers_gamma_digging_paced's, word for word. Also drivers_gamma_oscillation's, word for word. */
+/* gamma of the driver rows of case 'digging'. The same function serves drivers_gamma_bucket_toggle, drivers_gamma_bucket_stroke, drivers_gamma_bucket_near_toggle, drivers_gamma_digging_fast, drivers_gamma_digging_paced, drivers_gamma_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -2676,7 +2676,7 @@ void excavator_quaternion_compute_input_ranges_digging(const double *span, doubl
     out[23] = r153.hi;
 }
 
-/* Phi of the driver rows of case 'level_cut'. Also drivers_phi_trench_wall's, word for word. */
+/* Phi of the driver rows of case 'level_cut'. The same function serves drivers_phi_trench_wall (the same text). */
 void excavator_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -2702,7 +2702,7 @@ void excavator_quaternion_compute_drivers_phi_level_cut(const double *q, const d
     out[3] = -cos(u3)*bucket_a02 + sin(u3)*bucket_a22;
 }
 
-/* Phi_q values of the driver rows of case 'level_cut'. Also drivers_jac_trench_wall's, word for word. */
+/* Phi_q values of the driver rows of case 'level_cut'. The same function serves drivers_jac_trench_wall (the same text). */
 void excavator_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -2740,7 +2740,7 @@ void excavator_quaternion_compute_drivers_jac_level_cut(const double *q, const d
     out[11] = c4*bucket_a12;
 }
 
-/* nu of the driver rows of case 'level_cut'. Also drivers_nu_trench_wall's, word for word. */
+/* nu of the driver rows of case 'level_cut'. The same function serves drivers_nu_trench_wall (the same text). */
 void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
@@ -2764,7 +2764,7 @@ void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const do
     out[3] = -(cos(u3)*bucket_a22 + sin(u3)*bucket_a02)*ud3;
 }
 
-/* gamma of the driver rows of case 'level_cut'. Also drivers_gamma_trench_wall's, word for word. */
+/* gamma of the driver rows of case 'level_cut'. The same function serves drivers_gamma_trench_wall (the same text). */
 void excavator_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -5929,7 +5929,7 @@ void excavator_quaternion_compute_joints_phi_p(const double *q, const double *p,
     out[32] = -0.822595724821202*side_link_a22 + 0.5686266556413632*side_link_a20;
 }
 
-/* Phi_p values of the driver rows of case 'digging'. Also drivers_phi_p_level_cut's, word for word. Also drivers_phi_p_trench_wall's, word for word. Also drivers_phi_p_bucket_toggle's, word for word. Also drivers_phi_p_bucket_stroke's, word for word. Also drivers_phi_p_bucket_near_toggle's, word for word. Also drivers_phi_p_digging_fast's, word for word. Also drivers_phi_p_digging_paced's, word for word. Also drivers_phi_p_oscillation's, word for word. */
+/* Phi_p values of the driver rows of case 'digging'. The same function serves drivers_phi_p_level_cut, drivers_phi_p_trench_wall, drivers_phi_p_bucket_toggle, drivers_phi_p_bucket_stroke, drivers_phi_p_bucket_near_toggle, drivers_phi_p_digging_fast, drivers_phi_p_digging_paced, drivers_phi_p_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_phi_p_digging(const double *q, const double *u, const double *p, double *out) {
     (void)q;
     (void)u;
@@ -7651,7 +7651,7 @@ void excavator_quaternion_compute_joints_dvel_part6(const double *q, const doubl
     out[395] = (-c836 + c834)*v_side_link_theta_x + (-c844 + c846)*v_side_link_theta_y;
 }
 
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'. Also drivers_dvel_bucket_toggle's, word for word. Also drivers_dvel_bucket_stroke's, word for word. Also drivers_dvel_bucket_near_toggle's, word for word. Also drivers_dvel_digging_fast's, word for word. Also drivers_dvel_digging_paced's, word for word. Also drivers_dvel_oscillation's, word for word. */
+/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'. The same function serves drivers_dvel_bucket_toggle, drivers_dvel_bucket_stroke, drivers_dvel_bucket_near_toggle, drivers_dvel_digging_fast, drivers_dvel_digging_paced, drivers_dvel_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_dvel_digging(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -12352,7 +12352,7 @@ void excavator_quaternion_compute_joints_dacc_part17(const double *q, const doub
     out[758] = (-c3026 + c3024)*dv_side_link_theta_x + (-c3036 + c3038)*dv_side_link_theta_y - c3043*v_side_link_theta_x - c3066*v_side_link_theta_y + c3045*v_side_link_theta_x + c3065*v_side_link_theta_y;
 }
 
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'. Also drivers_dacc_bucket_toggle's, word for word. Also drivers_dacc_bucket_stroke's, word for word. Also drivers_dacc_bucket_near_toggle's, word for word. Also drivers_dacc_digging_fast's, word for word. Also drivers_dacc_digging_paced's, word for word. Also drivers_dacc_oscillation's, word for word. */
+/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'. The same function serves drivers_dacc_bucket_toggle, drivers_dacc_bucket_stroke, drivers_dacc_bucket_near_toggle, drivers_dacc_digging_fast, drivers_dacc_digging_paced, drivers_dacc_oscillation (the same text). */
 void excavator_quaternion_compute_drivers_dacc_digging(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -12657,7 +12657,7 @@ void excavator_quaternion_compute_drivers_dacc_digging(const double *q, const do
     out[59] = 2.0*c107 - 2.0*c108;
 }
 
-/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'. Also drivers_dvel_trench_wall's, word for word. */
+/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'. The same function serves drivers_dvel_trench_wall (the same text). */
 void excavator_quaternion_compute_drivers_dvel_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
@@ -12717,7 +12717,7 @@ void excavator_quaternion_compute_drivers_dvel_level_cut(const double *q, const 
     out[11] = c16*bucket_a02 - c18*bucket_a12;
 }
 
-/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'. Also drivers_dacc_trench_wall's, word for word. */
+/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'. The same function serves drivers_dacc_trench_wall (the same text). */
 void excavator_quaternion_compute_drivers_dacc_level_cut(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];

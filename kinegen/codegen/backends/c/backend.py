@@ -32,6 +32,7 @@ import kinegen.codegen.backends.c.config as config
 from kinegen.codegen.backends.c.printer import CPrinter
 from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Plan, Zeros
 from kinegen.codegen.shapes import Block, Group, Printing, eliminate
+from kinegen.codegen.sharing import SharedTexts
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
 from kinegen.interface import SENSITIVITY_ONLY
@@ -230,7 +231,7 @@ class _Model:
         self.functions: list[_Function] = []  # kernels and frames
         self.section_functions: list[_Function] = []
         self.sections: dict[str, list[str]] = {}
-        self.by_text: dict[tuple, list[_Function]] = {}  # a section's functions by their text (section)
+        self.shared = SharedTexts()  # a section's functions by their text (section)
         self.tables: list[str] = []  # the kernel tables (kernel_table)
         self.callers: dict[str, set[str]] = {}  # section function -> the kernels (by name) that call it
 
@@ -261,8 +262,8 @@ class _Model:
     def section(self, name: str, case: str | None) -> list[str]:
         """The function(s) of a section, made once; returns the names to call, in order (one per part).
         A section whose functions would be another's word for word (the same drivers in several cases:
-        the excavator's seven digging-like cases) calls that one's, its doc naming both: the C compiles
-        each text once."""
+        the excavator's seven digging-like cases) calls that one's, its doc naming both
+        (:class:`~kinegen.codegen.sharing.SharedTexts`): the C compiles each text once."""
         if name in self.sections:
             return self.sections[name]
         section = self.d.sections[name]
@@ -277,17 +278,11 @@ class _Model:
                 statements.append("(void)out;")
             doc = section.doc if len(parts) == 1 else f"{section.doc} Rows {part.offset} to {part.offset + len(part) - 1}."
             made.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
-        text = tuple((tuple(f.params), tuple(f.prologue), tuple(f.statements)) for f in made)
-        if text in self.by_text:
-            shared = self.by_text[text]
-            for function in shared:
-                function.doc += f" Also {name}'s, word for word."
-            self.sections[name] = [f.name for f in shared]
-            return self.sections[name]
-        self.by_text[text] = made
-        self.section_functions += made
-        self.sections[name] = names
-        return names
+        kept = self.shared.share(tuple((tuple(f.params), tuple(f.prologue), tuple(f.statements)) for f in made), made, name)
+        if kept is made:
+            self.section_functions += made
+        self.sections[name] = [f.name for f in kept]
+        return self.sections[name]
 
     def enclosure(self, enclosure: Enclosure) -> list[str]:
         """The function of an interval program (kinegen_interval.h's helpers), made once: from

@@ -21,6 +21,7 @@ import kinegen.codegen.backends.python.config as config
 from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter, used_numpy_names
 from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Output, Section, Zeros
 from kinegen.codegen.shapes import Block, Group, Printing
+from kinegen.codegen.sharing import SharedTexts
 from kinegen.codegen.templates import environment
 from kinegen.interface import FRAME_FIELDS
 from kinegen.symbolic import engine
@@ -79,8 +80,7 @@ class _Module:
         self.functions: list[_Function] = []
         self.blocks: dict[tuple[str, str], Block] = {}
         self.made: dict[str, str] = {}  # functions made once for every case (section and scalar): name -> the one to call
-        self.by_text: dict[tuple, list[_Function]] = {}  # a section's functions by their text (shared)
-        self.also: dict[str, tuple[str, list[str]]] = {}  # a shared function: its own doc, the sections it also computes
+        self.texts = SharedTexts()  # a section's functions by their text (shared)
 
     def block(self, name: str, prefix: str = "c") -> Block:
         """The section's printed block, temporaries ``<prefix>0, ...`` (functions computing several
@@ -164,22 +164,16 @@ class _Module:
     def shared(self, name: str, first: int, section: str) -> str:
         """The functions made from ``first`` on (one function's, or its parts'), for ``name``: kept, or
         dropped where another's are the same text but for their names (the same drivers in several
-        cases: the excavator's seven digging-like cases), whose doc then names this section too and
-        which is called instead (as the C backend's _Model.section). Returns the name to call."""
+        cases: the excavator's seven digging-like cases), which is called instead
+        (:class:`~kinegen.codegen.sharing.SharedTexts`, as the C backend's). Returns the name to call."""
         made = self.functions[first:]
         text = tuple((f.kind, tuple(f.args), tuple(f.prologue), tuple(f.outputs), f.allocate, len(f.parts),
                       tuple(r.replace(name, "<name>") for r in f.results), f.result) for f in made)  # (parts are name_part<k>)
-        if text not in self.by_text:
-            self.by_text[text] = made
-            self.made[name] = name
-            return name
-        del self.functions[first:]
-        kept = self.by_text[text][0]
-        doc, others = self.also.setdefault(kept.name, (kept.doc, []))
-        others.append(section)
-        kept.doc = f"{doc} The same function serves {', '.join(others)} (the same text)."
-        self.made[name] = kept.name
-        return kept.name
+        kept = self.texts.share(text, made, section)
+        if kept is not made:
+            del self.functions[first:]
+        self.made[name] = kept[0].name
+        return kept[0].name
 
     def section_array(self, section: str, case: str | None) -> str:
         """The NumPy function of one section (``_<section>``, made once); returns the name to call
