@@ -194,7 +194,8 @@ def test_generate_records_the_c_files_the_module_belongs_to():
 def test_the_update_of_a_step_is_defined_once_and_both_runtimes_follow_it(param):
     """The symbolic retraction (the definition) evaluated by SymPy, the NumPy retract of the Python
     runtime and the C retract printed from the definition (called in the compiled library) agree,
-    for ordinary steps and for steps under the small-angle branches (1e-10)."""
+    for ordinary steps, steps about the quaternion's series threshold (angles ~0.03) and steps
+    under the small-angle branches (1e-10)."""
     import sympy as sp
 
     parametrization = rotations.get(param)
@@ -208,6 +209,7 @@ def test_the_update_of_a_step_is_defined_once_and_both_runtimes_follow_it(param)
         q[4:] -= q[:4] * np.einsum("ik,ik->k", q[:4], q[4:])  # real part orthogonal to the dual part
     step = rng.normal(scale=0.3, size=(parametrization.nv, k))
     step[:, : k // 2] *= 1e-10
+    step[:, k // 2 : 3 * k // 4] *= 0.06  # angles ~0.03: on either side of qa.SERIES_BELOW
     numpy_moved = parametrization.retract(q, step)
     qs, ss = sp.symbols(f"q0:{parametrization.nq}", real=True), sp.symbols(f"s0:{parametrization.nv}", real=True)
     exprs = parametrization.retraction(sp.Matrix(qs), sp.Matrix(ss))

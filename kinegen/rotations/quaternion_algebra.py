@@ -6,8 +6,35 @@ Arrays may carry leading batch dimensions: a quaternion is ``q[..., 0:4]``.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
+
 import numpy as np
 import sympy as sp
+from sympy.core.parameters import distribute
+
+#: Below this squared rotation angle x = theta . theta (1e-3: an angle of ~0.032 rad) the retraction's
+#: cos(angle/2) and sin(angle/2)/angle are their Taylor polynomials in x to x^3: the first term left out is
+#: below 1e-19 of either value there (x^4/10,321,920 and x^4/185,794,560), far under its rounding, so
+#: the polynomials equal the functions to the last bit or two (tested against mpmath). A Newton
+#: step's and nearly every predictor's increments are that small: the generated C's retract_body then
+#: takes no sine or cosine (the excavator's certified step 104.1 -> 100.3 M instructions a thousand
+#: steps, docs/performance.md).
+SERIES_BELOW = 1e-3
+
+
+#: The polynomials' coefficients, exact: cos(sqrt(x)/2) = 1 - x (1/8 - x (1/384 - x/46,080)) + ..., and
+#: sin(sqrt(x)/2)/sqrt(x) = 1/2 - x (1/48 - x (1/3,840 - x/645,120)) + ...
+COS_HALF_SERIES = (sp.Integer(1), sp.Rational(1, 8), sp.Rational(1, 384), sp.Rational(1, 46080))
+SIN_HALF_OVER_ANGLE_SERIES = (sp.Rational(1, 2), sp.Rational(1, 48), sp.Rational(1, 3840), sp.Rational(1, 645120))
+_COS_HALF, _SIN_HALF_OVER_ANGLE = (tuple(float(c) for c in series) for series in (COS_HALF_SERIES, SIN_HALF_OVER_ANGLE_SERIES))
+
+
+def _horner(x, c):
+    """c0 - x (c1 - x (c2 - c3 x)): the order of operations the generated C prints (SymPy x and exact
+    coefficients there, c3 x kept a product: SymPy would spread a number over a sum; NumPy x and the
+    coefficients' doubles here)."""
+    with distribute(False) if isinstance(x, sp.Basic) else nullcontext():
+        return c[0] - x * (c[1] - x * (c[2] - c[3] * x))
 
 
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -25,14 +52,18 @@ def increment(rotation_vector: np.ndarray, q: np.ndarray) -> np.ndarray:
 
     The same as ``multiply(exp(theta), q)``, written out component by component: the
     retraction of every Newton step, where NumPy's per-call cost outweighs the arithmetic.
+    Below an angle of ~0.032 rad (``theta . theta <= SERIES_BELOW``) the half angle's cosine and
+    its sine over the angle are their Taylor polynomials (:data:`SERIES_BELOW`).
     """
     tx, ty, tz = rotation_vector
     qw, qx, qy, qz = q
-    angle = np.sqrt(tx * tx + ty * ty + tz * tz)
+    squared = tx * tx + ty * ty + tz * tz
+    small = squared <= SERIES_BELOW
+    angle = np.sqrt(np.where(small, 1.0, squared))
     half = 0.5 * angle
-    small = angle <= 1e-8
-    scale = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / np.where(small, 1.0, angle))
-    pw, px, py, pz = np.cos(half), scale * tx, scale * ty, scale * tz
+    cos_half = np.where(small, _horner(squared, _COS_HALF), np.cos(half))
+    scale = np.where(small, _horner(squared, _SIN_HALF_OVER_ANGLE), np.sin(half) / angle)
+    pw, px, py, pz = cos_half, scale * tx, scale * ty, scale * tz
     return np.stack(
         [
             pw * qw - px * qx - py * qy - pz * qz,
@@ -109,11 +140,15 @@ def symbolic_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
 
 def symbolic_increment(theta: sp.Matrix, q: sp.Matrix) -> list[sp.Expr]:
     """``exp(theta/2) ⊗ q`` of a symbolic rotation vector (3x1) and quaternion (4x1), as
-    :func:`increment` computes it: the rotation's half-angle sine over the angle by its series
-    below an angle of 1e-8 (where the quotient loses its digits)."""
-    angle = sp.sqrt(sum((x * x for x in theta), sp.Integer(0)))
-    scale = sp.Piecewise((sp.Rational(1, 2) - angle**2 / 48, angle <= sp.Float(1e-8)), (sp.sin(angle / 2) / angle, True))
-    exp = sp.Matrix([sp.cos(angle / 2), *(scale * x for x in theta)])
+    :func:`increment` computes it: the half angle's cosine and its sine over the angle by their
+    Taylor polynomials where theta . theta <= :data:`SERIES_BELOW` (the branch taken alone is
+    evaluated in the generated C)."""
+    squared = sum((x * x for x in theta), sp.Integer(0))
+    angle = sp.sqrt(squared)
+    small = squared <= sp.Float(SERIES_BELOW)
+    cos_half = sp.Piecewise((_horner(squared, COS_HALF_SERIES), small), (sp.cos(angle / 2), True))
+    scale = sp.Piecewise((_horner(squared, SIN_HALF_OVER_ANGLE_SERIES), small), (sp.sin(angle / 2) / angle, True))
+    exp = sp.Matrix([cos_half, *(scale * x for x in theta)])
     return list(symbolic_product(exp, q))
 
 
