@@ -330,6 +330,8 @@ def targets(
                 out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C (issue 11)", mine / whole_c, 0.33, True))
             elif mine is not None and whole_c is not None:
                 out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C", mine / whole_c, 1.0, True))
+            if name == KINEGEN_C_OWN and mine is not None and whole_c is not None:  # the default compiled solve: certified along the case's functions
+                out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C (issue 41)", mine / whole_c, 0.2, True))
         scipy_time = get(w, "SciPy hybr + finite differences", "trajectory")
         for name in (KINEGEN, KINEGEN_OWN, KINEGEN_C, KINEGEN_C_OWN):
             mine = get(w, name, "trajectory")
