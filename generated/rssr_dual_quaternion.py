@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': '44a8e85d3f0d3a27d994b5e20de627b177f7bb48e2dee9914f12dffff29e881d'}
+C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': '11c4e100e0939e35bb61ce9f014ef69a81d03d6ba69e8eed8555b375b921dabb'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

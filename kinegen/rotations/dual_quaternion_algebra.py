@@ -17,24 +17,35 @@ import sympy as sp
 
 import kinegen.rotations.quaternion_algebra as qa
 
-#: below this half-angle the exponential's coefficients use their Taylor series
-_SMALL = 1e-4
+#: At or below this squared half-angle h² (2.5e-4: the rotation angle 2h ~0.032 rad of the quaternion's
+#: quaternion_algebra.SERIES_BELOW) the exponential's coefficients cos h, sin(h)/h and (cos h - sin h/h)/h²
+#: are their Taylor polynomials in h² to (h²)³ (Horner's form): the first term left out is below 1e-19 of
+#: each value there, far under its rounding; the third would otherwise cancel (~1e-16/h² of itself
+#: lost). A Newton step's and nearly every predictor's half-angles are that small: the generated C's
+#: retract_body then takes no sine or cosine.
+SERIES_BELOW = qa.SERIES_BELOW / 4
+#: c0 - x (c1 - x (c2 - c3 x)) of each, exact: cos h = 1 - x/2 + x²/24 - x³/720 + ..., sin(h)/h = 1 - x/6 +
+#: x²/120 - x³/5040 + ..., (cos h - sin h/h)/h² = -1/3 + x/30 - x²/840 + x³/45360 - ... (x = h²)
+COS_SERIES = (sp.Integer(1), sp.Rational(1, 2), sp.Rational(1, 24), sp.Rational(1, 720))
+SINC_SERIES = (sp.Integer(1), sp.Rational(1, 6), sp.Rational(1, 120), sp.Rational(1, 5040))
+BEND_SERIES = (-sp.Rational(1, 3), -sp.Rational(1, 30), -sp.Rational(1, 840), -sp.Rational(1, 45360))
+_COS, _SINC, _BEND = (tuple(float(c) for c in series) for series in (COS_SERIES, SINC_SERIES, BEND_SERIES))
 
 
-def _coefficients(h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _coefficients(h: np.ndarray, h2: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """cos h, sin(h)/h and (cos h − sin h / h)/h² (the derivative of sin(h)/h divided by h) at
-    the half-angles ``h``; the last two by their Taylor series below ``_SMALL``, where they
-    would cancel (and are exact: the series' next terms are below rounding there)."""
+    the half-angles ``h`` (``h2``: their squares as summed, default h²); by their Taylor
+    polynomials where h² <= :data:`SERIES_BELOW` (exact there: the next terms are below rounding)."""
     h = np.asarray(h, dtype=float)
-    h2 = h * h
-    cos = np.cos(h)
-    if h.size and h.min() >= _SMALL:  # the usual Newton step: no series needed
-        sinc = np.sin(h) / h
+    h2 = h * h if h2 is None else np.asarray(h2, dtype=float)
+    if h2.size and h2.min() > SERIES_BELOW:  # a large step: no polynomial needed
+        cos, sinc = np.cos(h), np.sin(h) / h
         return cos, sinc, (cos - sinc) / h2
-    small = h < _SMALL
+    small = h2 <= SERIES_BELOW
     safe = np.where(small, 1.0, h)
-    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(h) / safe)
-    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (cos - sinc) / (safe * safe))
+    cos = np.where(small, qa.horner(h2, _COS), np.cos(h))
+    sinc = np.where(small, qa.horner(h2, _SINC), np.sin(h) / safe)
+    bend = np.where(small, qa.horner(h2, _BEND), (cos - sinc) / (safe * safe))
     return cos, sinc, bend
 
 
@@ -136,16 +147,18 @@ def symbolic_translation(s: sp.Matrix) -> sp.Matrix:
 
 def symbolic_increment(angular: sp.Matrix, linear: sp.Matrix, s: sp.Matrix) -> list[sp.Expr]:
     """``exp(ξ) ⊗ σ`` of a symbolic twist's angular and linear parts (3x1 each) and pose σ (8x1),
-    as :func:`increment_parts` computes it: with h the half-angle, sin(h)/h and
-    (cos h − sin h / h)/h² by their Taylor series below h = 1e-4 (where they would cancel)."""
+    as :func:`increment_parts` computes it: with h the half-angle, cos h, sin(h)/h and
+    (cos h − sin h / h)/h² by their Taylor polynomials where h² <= :data:`SERIES_BELOW` (the branch
+    taken alone is evaluated in the generated C)."""
     a, b = angular / 2, linear / 2
     h2 = sum((x * x for x in a), sp.Integer(0))
     h = sp.sqrt(h2)
     ab = sum((x * y for x, y in zip(a, b)), sp.Integer(0))
-    small = h < sp.Float(_SMALL)
-    sinc = sp.Piecewise((1 - h2 / 6 + h2 * h2 / 120, small), (sp.sin(h) / h, True))
-    bend = sp.Piecewise((-sp.Rational(1, 3) + h2 / 30 - h2 * h2 / 840, small), ((sp.cos(h) - sp.sin(h) / h) / h2, True))
-    real = sp.Matrix([sp.cos(h), *(sinc * x for x in a)])
+    small = h2 <= sp.Float(SERIES_BELOW)
+    cos = sp.Piecewise((qa.horner(h2, COS_SERIES), small), (sp.cos(h), True))
+    sinc = sp.Piecewise((qa.horner(h2, SINC_SERIES), small), (sp.sin(h) / h, True))
+    bend = sp.Piecewise((qa.horner(h2, BEND_SERIES), small), ((cos - sinc) / h2, True))  # (cos h, sin h alone in their branches)
+    real = sp.Matrix([cos, *(sinc * x for x in a)])
     dual = sp.Matrix([-sinc * ab, *(sinc * y + bend * ab * x for x, y in zip(a, b))])
     r, d = s[0:4, :], s[4:8, :]
     return [*qa.symbolic_product(real, r), *(qa.symbolic_product(real, d) + qa.symbolic_product(dual, r))]
@@ -164,10 +177,10 @@ def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
 def increment_parts(angular: np.ndarray, linear: np.ndarray, s: np.ndarray) -> np.ndarray:
     """:func:`increment` with the twist's angular (3, ...) and linear (3, ...) parts apart."""
     a, b = 0.5 * angular, 0.5 * linear
-    h = np.sqrt(np.einsum("i...,i...->...", a, a))
+    h2 = np.einsum("i...,i...->...", a, a)
     ab = np.einsum("i...,i...->...", a, b)
-    cos, sinc, bend = _coefficients(h)
-    p = np.empty((8, *h.shape))
+    cos, sinc, bend = _coefficients(np.sqrt(h2), h2)
+    p = np.empty((8, *h2.shape))
     p[0], p[1:4] = cos, sinc * a
     p[4], p[5:8] = -sinc * ab, sinc * b + (bend * ab) * a
     outer = p[:, None] * s[None, :]  # (8, 8, ...): every product p_j s_k, then one matrix product

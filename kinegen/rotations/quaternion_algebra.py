@@ -29,7 +29,7 @@ SIN_HALF_OVER_ANGLE_SERIES = (sp.Rational(1, 2), sp.Rational(1, 48), sp.Rational
 _COS_HALF, _SIN_HALF_OVER_ANGLE = (tuple(float(c) for c in series) for series in (COS_HALF_SERIES, SIN_HALF_OVER_ANGLE_SERIES))
 
 
-def _horner(x, c):
+def horner(x, c):
     """c0 - x (c1 - x (c2 - c3 x)): the order of operations the generated C prints (SymPy x and exact
     coefficients there, c3 x kept a product: SymPy would spread a number over a sum; NumPy x and the
     coefficients' doubles here)."""
@@ -61,8 +61,8 @@ def increment(rotation_vector: np.ndarray, q: np.ndarray) -> np.ndarray:
     small = squared <= SERIES_BELOW
     angle = np.sqrt(np.where(small, 1.0, squared))
     half = 0.5 * angle
-    cos_half = np.where(small, _horner(squared, _COS_HALF), np.cos(half))
-    scale = np.where(small, _horner(squared, _SIN_HALF_OVER_ANGLE), np.sin(half) / angle)
+    cos_half = np.where(small, horner(squared, _COS_HALF), np.cos(half))
+    scale = np.where(small, horner(squared, _SIN_HALF_OVER_ANGLE), np.sin(half) / angle)
     pw, px, py, pz = cos_half, scale * tx, scale * ty, scale * tz
     return np.stack(
         [
@@ -146,8 +146,8 @@ def symbolic_increment(theta: sp.Matrix, q: sp.Matrix) -> list[sp.Expr]:
     squared = sum((x * x for x in theta), sp.Integer(0))
     angle = sp.sqrt(squared)
     small = squared <= sp.Float(SERIES_BELOW)
-    cos_half = sp.Piecewise((_horner(squared, COS_HALF_SERIES), small), (sp.cos(angle / 2), True))
-    scale = sp.Piecewise((_horner(squared, SIN_HALF_OVER_ANGLE_SERIES), small), (sp.sin(angle / 2) / angle, True))
+    cos_half = sp.Piecewise((horner(squared, COS_HALF_SERIES), small), (sp.cos(angle / 2), True))
+    scale = sp.Piecewise((horner(squared, SIN_HALF_OVER_ANGLE_SERIES), small), (sp.sin(angle / 2) / angle, True))
     exp = sp.Matrix([cos_half, *(scale * x for x in theta)])
     return list(symbolic_product(exp, q))
 
