@@ -5,9 +5,9 @@ treats both alike. Building is quicker (no printing); evaluation is slower. The 
 those the case's kernels declare (:func:`kinegen.codegen.kernels.describe`): each output the
 concatenation of its sections' groups (renamed from their shape's placeholders, as a backend
 prints them) or zeros, the input enclosures through the declared interval program -- the
-same source the Python and C backends print. A case's functions are made when the case is
-first read (``CASES[name]``), their common subexpressions eliminated by SymEngine
-(:func:`kinegen.symbolic.engine.eliminate`).
+same source the Python and C backends print. A case's functions are made when each is first
+called (the case's outputs when it is first read, ``CASES[name]``), their common subexpressions
+eliminated by SymEngine (:func:`kinegen.symbolic.engine.eliminate`).
 """
 
 from __future__ import annotations
@@ -82,6 +82,22 @@ def _output_function(description: ModuleDescription, case: CaseDescription, kern
     return _stacked(function, output.size, tuple(i for i, s in enumerate(kernel.slots) if s != "t"))
 
 
+class _Lazy:
+    """An output's NumPy function, lambdified when first called: a case's gamma is most of the
+    lambdify time (the truss of tests/test_bounded_inputs.py in euler:zxz: 2.8 of its 3.8 s), and an
+    inspection or a classification asks for Phi and Phi_q alone."""
+
+    __slots__ = ("_function", "_make")
+
+    def __init__(self, make: Callable[[], Callable]) -> None:
+        self._make, self._function = make, None
+
+    def __call__(self, *args):
+        if self._function is None:
+            self._function = self._make()
+        return self._function(*args)
+
+
 class _Cases(Mapping):
     """A generated module's CASES, each case's functions made on first reading."""
 
@@ -123,8 +139,9 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
             "t1": c.t1,
             "steps": c.steps,
             "driver_sources": c.driver_sources,
-            "outputs": {  # the outputs of the kernels the case declares (no plain-float ones)
-                output.name: _output_function(d, c, kernel, output) for kernel in c.kernels.values() for output in kernel.outputs
+            "outputs": {  # the outputs of the kernels the case declares (no plain-float ones), each made when first called
+                output.name: _Lazy(functools.partial(_output_function, d, c, kernel, output))
+                for kernel in c.kernels.values() for output in kernel.outputs
             },
             "scalar": {},
             "patterns": {},
