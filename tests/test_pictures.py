@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.patches import Patch
 from scipy.spatial.transform import Rotation
 
-from kinegen.analysis.animation import animation_figure
+from kinegen.analysis.animation import animate, animation_figure, gif_frame
 from kinegen.analysis.chart import outlines, transport_q, working_range_figure
 from kinegen.analysis.plots import _in_frame
 from kinegen.analysis.view import _BARREL, _OUT, _ROD, cylinder
@@ -250,6 +250,27 @@ def test_the_case_plot_shows_both_twin_cylinders_labels_its_ranges_and_draws_the
     boom = solve(generated_system("boom_quaternion"))
     fig = case_figure(boom, None, ("boom", "tip"), model=model("boom"))
     assert not any(line.get_gid() == "ground" for line in _panels(fig)["drawing"].lines)
+    pyplot().close(fig)
+
+
+def test_the_animations_gif_holds_every_frame_each_within_a_few_levels_of_its_rendering(tmp_path):
+    """The GIF of the four-bar's crank turn holds one picture per drawn time point, and a frame reduced to
+    the GIF's 256 colours (Pillow's fast octree) is within 16/255 of matplotlib's rendering at every
+    pixel, 2/255 on average (the digging cycle's 86 frames measured 14/255 and 1.05/255)."""
+    from PIL import Image
+
+    results = solve(generated_system("four_bar_quaternion", "crank_turn", compiled=True))
+    gif = animate(results, tmp_path / "crank_turn.gif")
+    fig, draw, keep = animation_figure(results)
+    with Image.open(gif) as opened:
+        assert opened.n_frames == len(keep)
+    for k in (keep[0], keep[len(keep) // 2]):
+        draw(int(k))
+        fig.canvas.draw()
+        rendered = np.asarray(fig.canvas.buffer_rgba())
+        reduced = np.asarray(gif_frame(rendered).convert("RGB"), dtype=float)
+        difference = np.abs(reduced - rendered[..., :3]).max(axis=2)
+        assert difference.max() <= 16 and difference.mean() <= 2, (difference.max(), difference.mean())
     pyplot().close(fig)
 
 
