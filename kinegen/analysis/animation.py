@@ -75,7 +75,7 @@ def _write_gif(fig, draw, keep, path: Path, fps: int) -> None:
 def gif_frame(rgba: np.ndarray):
     """One rendered frame (rows x columns x RGBA, 8 bits) as a GIF's 256-colour picture: Pillow's fast
     octree. Left to the GIF writer, each frame was reduced by median cut: 4.3 of the 11 s of the
-    README's ``kinegen view --animate`` (86 frames of 640 x 800), against 0.9 s, and a file of
+    README's ``kinegen view --animate`` (86 frames of 640 x 800), against 1.1 s, and a file of
     1.3 MB against 0.7 MB; each pixel is within 14/255 of its rendered colour (tested), where the
     median cut's were within 40/255."""
     from PIL import Image

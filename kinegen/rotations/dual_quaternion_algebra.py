@@ -45,7 +45,7 @@ def _coefficients(h: np.ndarray, h2: np.ndarray | None = None) -> tuple[np.ndarr
     safe = np.where(small, 1.0, h)
     cos = np.where(small, qa.horner(h2, _COS), np.cos(h))
     sinc = np.where(small, qa.horner(h2, _SINC), np.sin(h) / safe)
-    bend = np.where(small, qa.horner(h2, _BEND), (cos - sinc) / (safe * safe))
+    bend = np.where(small, qa.horner(h2, _BEND), (cos - sinc) / np.where(small, 1.0, h2))  # (as the large steps' line above)
     return cos, sinc, bend
 
 

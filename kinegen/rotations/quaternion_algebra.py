@@ -37,6 +37,15 @@ def horner(x, c):
         return c[0] - x * (c[1] - x * (c[2] - c[3] * x))
 
 
+def _half_angle(squared: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """cos(angle/2) and sin(angle/2)/angle at the squared rotation angles ``squared`` (NumPy): their
+    Taylor polynomials at or below :data:`SERIES_BELOW`, as :func:`symbolic_increment` defines them."""
+    small = squared <= SERIES_BELOW
+    angle = np.sqrt(np.where(small, 1.0, squared))
+    half = 0.5 * angle
+    return np.where(small, horner(squared, _COS_HALF), np.cos(half)), np.where(small, horner(squared, _SIN_HALF_OVER_ANGLE), np.sin(half) / angle)
+
+
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q``."""
     pw, pv = p[..., 0], p[..., 1:]
@@ -57,12 +66,7 @@ def increment(rotation_vector: np.ndarray, q: np.ndarray) -> np.ndarray:
     """
     tx, ty, tz = rotation_vector
     qw, qx, qy, qz = q
-    squared = tx * tx + ty * ty + tz * tz
-    small = squared <= SERIES_BELOW
-    angle = np.sqrt(np.where(small, 1.0, squared))
-    half = 0.5 * angle
-    cos_half = np.where(small, horner(squared, _COS_HALF), np.cos(half))
-    scale = np.where(small, horner(squared, _SIN_HALF_OVER_ANGLE), np.sin(half) / angle)
+    cos_half, scale = _half_angle(tx * tx + ty * ty + tz * tz)
     pw, px, py, pz = cos_half, scale * tx, scale * ty, scale * tz
     return np.stack(
         [
@@ -124,11 +128,9 @@ def from_matrix(rotation: np.ndarray) -> np.ndarray:
 
 def exp(rotation_vector: np.ndarray) -> np.ndarray:
     """Unit quaternion of the rotation vector ``theta`` (axis * angle): exp(theta/2)."""
-    angle = np.linalg.norm(rotation_vector, axis=-1)
-    half = 0.5 * angle
-    # sin(half)/angle, with its Taylor series near zero
-    scale = np.where(angle > 1e-8, np.sin(half) / np.where(angle > 1e-8, angle, 1.0), 0.5 - angle**2 / 48.0)
-    return np.concatenate([np.cos(half)[..., None], scale[..., None] * rotation_vector], axis=-1)
+    rotation_vector = np.asarray(rotation_vector, dtype=float)
+    cos_half, scale = _half_angle(np.einsum("...i,...i->...", rotation_vector, rotation_vector))
+    return np.concatenate([cos_half[..., None], scale[..., None] * rotation_vector], axis=-1)
 
 
 # ---- symbolic ----------------------------------------------------------------------------
