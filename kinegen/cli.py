@@ -1146,5 +1146,18 @@ def _pareto_pair(names: tuple[str, ...], columns: list[str]) -> tuple[str, str]:
     return _column(names[0], columns, "--pareto"), _column(names[1], columns, "--pareto")
 
 
+def run() -> None:
+    """The ``kinegen`` executable (``[project.scripts]``, ``python -m kinegen.cli``): :func:`main`, whose
+    exit then ends the process as :func:`kinegen.exiting.exit_process` does (the heap a build leaves is
+    not freed object by object). Called in-process, as click's test runner calls it, use :func:`main`."""
+    from kinegen.exiting import exit_process
+
+    try:
+        main()
+    except SystemExit as exc:
+        exit_process(exc.code)
+    exit_process(0)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    run()

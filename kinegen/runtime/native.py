@@ -379,6 +379,7 @@ def _stopped(process: subprocess.Popen, held: ExitStack) -> None:
     with suppress(OSError):
         process.kill()
         process.wait()
+        process.stderr.close()  # (its pipe, which no one reads now: no ResourceWarning at exit)
     held.close()
 
 
