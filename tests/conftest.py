@@ -27,6 +27,27 @@ os.environ["KINEGEN_TRUST"] = str(ROOT / ".pytest_cache" / "kinegen-trust")
 #: runs as the trust store is. The tests that damage cached files keep a cache of their own.
 os.environ["KINEGEN_CACHE"] = str(ROOT / ".pytest_cache" / "kinegen-cache")
 
+
+def cache_with_solver(folder: Path) -> Path:
+    """``folder`` made a kinegen cache that holds the C solver's object of the suite's cache (compiled
+    there first if it is not; the shared trust store knows its bytes), as any machine that built a model
+    has it: for a test that needs a cache of its own for something else (damaged files, what a build
+    keeps), so that it does not compile the solver again (~2.5 CPU-s). Call it while KINEGEN_CACHE is the
+    suite's. Without a C compiler, an empty folder."""
+    import shutil
+
+    from kinegen.errors import KinegenError
+    from kinegen.runtime.native import build_solver_object
+
+    (folder / "objects").mkdir(parents=True, exist_ok=True)
+    try:
+        kept = build_solver_object()
+    except KinegenError:  # (no compiler: nothing to keep)
+        return folder
+    shutil.copy2(kept, folder / "objects" / kept.name)
+    return folder
+
+
 #: The slider crank (models/slider_crank.yaml) at top dead centre, its stored quaternion coordinates: crank
 #: and rod along x, the slider at x = r + l = 0.8 m, where Phi_q loses rank (a mechanism singularity).
 SLIDER_CRANK_DEAD_CENTRE = (0, 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 1, 0, 0, 0, 0.8, 0, 0, 1, 0, 0, 0.0)

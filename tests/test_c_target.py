@@ -22,7 +22,7 @@ from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
 from kinegen.runtime import Solver, SolverOptions, export, from_module, load_module
 from kinegen.runtime.native import build_library, with_solver
-from tests.conftest import GENERATED, MODELS, ROOT, SLIDER_CRANK_DEAD_CENTRE, chain_yaml
+from tests.conftest import GENERATED, MODELS, ROOT, SLIDER_CRANK_DEAD_CENTRE, cache_with_solver, chain_yaml
 
 CC = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler")
@@ -795,7 +795,7 @@ def test_the_sensitivity_kernels_compile_when_first_asked_for(tmp_path, monkeypa
     text = (tmp_path / "slider_crank_quaternion.c").read_text()
     parts, deferred = config.source_parts(text), config.sensitivity_parts(text)
     assert deferred and set(deferred) < set(parts) and 0 not in deferred and config.has_sensitivity_parts(text)
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("KINEGEN_CACHE", str(cache_with_solver(tmp_path / "cache")))  # (the solver's object there already)
     objects = tmp_path / "cache" / "objects"
     module = load_module(tmp_path / "slider_crank_quaternion.py")
     system = from_module(module)

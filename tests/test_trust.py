@@ -31,7 +31,7 @@ from kinegen.integrity import c_string, comment_text
 from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 from kinegen.runtime import native as native_module
 from kinegen.runtime.solver import SamplingWarning
-from tests.conftest import GENERATED, MODELS
+from tests.conftest import GENERATED, MODELS, cache_with_solver
 
 CC = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler")
@@ -417,7 +417,7 @@ def test_escapes_leave_no_way_out_of_a_comment_or_a_string():
 def built(tmp_path, tmp_path_factory, monkeypatch):
     """The four-bar built afresh, with a cache of this test process's own: the tests that use it damage
     what kinegen keeps there (a module's code, a compiled library), which no other test may load."""
-    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
+    monkeypatch.setenv("KINEGEN_CACHE", str(cache_with_solver(tmp_path_factory.getbasetemp() / "kinegen-cache")))
     model = tmp_path / "four_bar.yaml"
     shutil.copy(MODELS / "four_bar.yaml", model)
     return model, build(model, "quaternion", tmp_path / "generated")
