@@ -1,7 +1,7 @@
 """Ending a finished command's process without taking its heap apart object by object.
 
 A build leaves millions of SymPy and SymEngine objects behind; Python's own shutdown frees each of
-them before the process ends (0.3-0.4 s after the excavator's build, measured: docs/performance.md,
+them before the process ends (0.3-0.6 s after the excavator's build, measured: docs/performance.md,
 "Command start-up"). A command that is done has nothing left to free: :func:`exit_process` flushes
 the standard streams, runs what was registered to run at exit (:mod:`atexit`: logging's shutdown,
 the finalizers of temporary files and folders, multiprocessing's and Dask's clean-ups) and ends
@@ -25,9 +25,9 @@ def exit_process(code: int | str | None) -> NoReturn:
     (which Python's shutdown would wait for) or a stream cannot be flushed, ``sys.exit(code)``."""
     run_exit_functions = getattr(atexit, "_run_exitfuncs", None)  # (CPython's; elsewhere Python's own exit)
     others = [t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon and t.is_alive()]
-    if not (code is None or isinstance(code, int)) or others or run_exit_functions is None or not _flushed():
+    if not (code is None or isinstance(code, int)) or others or run_exit_functions is None:
         sys.exit(code)
-    run_exit_functions()
+    run_exit_functions()  # (they may write too: the streams are flushed after them)
     if not _flushed():
         sys.exit(code)
     os._exit(code or 0)

@@ -29,22 +29,18 @@ os.environ["KINEGEN_CACHE"] = str(ROOT / ".pytest_cache" / "kinegen-cache")
 
 
 def cache_with_solver(folder: Path) -> Path:
-    """``folder`` made a kinegen cache that holds the C solver's object of the suite's cache (compiled
-    there first if it is not; the shared trust store knows its bytes), as any machine that built a model
-    has it: for a test that needs a cache of its own for something else (damaged files, what a build
-    keeps), so that it does not compile the solver again (~2.5 CPU-s). Call it while KINEGEN_CACHE is the
-    suite's. Without a C compiler, an empty folder."""
-    import shutil
-
+    """``folder`` made a kinegen cache that holds the current cache's C solver object
+    (:func:`kinegen.runtime.native.copy_solver_object`), for a test that needs a cache of its own for
+    something else (damaged files, what a build keeps): it does not compile the solver again (~2.5
+    CPU-s). Without a C compiler, an empty folder."""
     from kinegen.errors import KinegenError
-    from kinegen.runtime.native import build_solver_object
+    from kinegen.runtime.native import copy_solver_object
 
     (folder / "objects").mkdir(parents=True, exist_ok=True)
     try:
-        kept = build_solver_object()
+        copy_solver_object(folder)
     except KinegenError:  # (no compiler: nothing to keep)
-        return folder
-    shutil.copy2(kept, folder / "objects" / kept.name)
+        pass
     return folder
 
 

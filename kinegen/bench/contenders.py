@@ -183,17 +183,13 @@ def _fresh_cache(solver: bool = False) -> Iterator[None]:
     process into a re-created copy of it, outside any cache anyone cleans. ``solver``: the new
     folder holds the C solver's object of the cache before (compiled there first if it was not;
     the trust store knows its bytes), as a machine that built any model has it."""
-    import shutil
-
-    from kinegen.runtime.native import build_solver_object
+    from kinegen.runtime.native import copy_solver_object
 
     previous = os.environ.get("KINEGEN_CACHE")
-    kept = build_solver_object() if solver else None
     with tempfile.TemporaryDirectory() as cache:
+        if solver:
+            copy_solver_object(Path(cache))
         os.environ["KINEGEN_CACHE"] = cache
-        if kept is not None:
-            (Path(cache) / "objects").mkdir()
-            shutil.copy2(kept, Path(cache) / "objects" / kept.name)
         try:
             yield
         finally:

@@ -168,6 +168,17 @@ def build_solver_object() -> Path:
     return _objects(c_compiler(), with_solver({}), ["kinegen_solver.c"])[0]
 
 
+def copy_solver_object(cache: Path) -> Path:
+    """Put the current cache's C solver object (:func:`build_solver_object`: compiled there first if it
+    is not) into the kinegen cache folder ``cache``, as a machine that built any model has it: a fresh
+    cache (the benchmark's, a test's) that should not spend its first build on the solver. The trust
+    store knows the copy's bytes. CompileError without a usable compiler."""
+    kept = build_solver_object()
+    (cache / "objects").mkdir(parents=True, exist_ok=True)
+    shutil.copy2(kept, cache / "objects" / kept.name)
+    return cache / "objects" / kept.name
+
+
 def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivities: bool = True) -> list[Path]:
     """The object files of the C files ``names`` among ``sources``, from the cache
     (``objects/``, keyed by :func:`_object_key`); the missing ones compiled in parallel, a large
