@@ -441,13 +441,13 @@ static const int diag_slot_swing[] = {6, 7, 5, 2, 0, 3, 1, 4};
 static const int off_start_swing[] = {0, 0, 0, 2, 4, 6, 8};
 static const int off_col_swing[] = {0, 1, 0, 1, 0, 2, 1, 2};
 static const int off_value_swing[] = {14, 13, 7, 6, 0, 1, 3, 4};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_swing) */
-static void solve_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_swing) */
+static void solve_swing_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[3];
     y[1] = b[4];
-    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
-    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
+    { double g0 = y[0 + perm[0]], g1 = y[0 + perm[1]]; y[0] = g0; y[1] = g1; }
     y[1] -= A[1] * y[0];
     y[1] *= 1.0 / A[3];
     y[0] -= A[2] * y[1];
@@ -463,9 +463,9 @@ static void solve_swing_0(const double *restrict A, const double *restrict off, 
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_swing_0(A, off, piv, b, y);
-    for (int j = 0; j < 6; ++j) x[col_order_swing[j]] = y[j];
+static void solve_swing(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_swing_0(A, off, perm, b, y);
+    x[1] = y[0]; x[0] = y[1]; x[2] = y[2]; x[5] = y[3]; x[3] = y[4]; x[4] = y[5];
 }
 
 /* the first permuted row of each function above */
@@ -473,15 +473,15 @@ static const int solve_rows_swing[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_swing(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_swing[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_swing_0(A, off, piv, b, y);
-    for (int j = 0; j < 6; ++j) x[col_order_swing[j]] = y[j];
+    if (first <= 0) solve_swing_0(A, off, perm, b, y);
+    x[1] = y[0]; x[0] = y[1]; x[2] = y[2]; x[5] = y[3]; x[3] = y[4]; x[4] = y[5];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_swing) */
-static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
     w[1] -= off[6] * w[5];
     w[2] -= off[7] * w[5];
@@ -497,14 +497,13 @@ static void solve_transposed_swing_0(const double *restrict A, const double *res
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
     { double acc = w[1]; acc -= A[2] * w[0]; w[1] = acc * (1.0 / A[3]); }
     { double acc = w[0]; acc -= A[1] * w[1]; w[0] = acc; }
-    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
-    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+    { double g0 = w[0], g1 = w[1]; w[0 + perm[0]] = g0; w[0 + perm[1]] = g1; }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_swing(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_swing(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 6; ++j) w[j] = c[col_order_swing[j]];
-    solve_transposed_swing_0(A, off, piv, w);
+    solve_transposed_swing_0(A, off, perm, w);
     for (int i = 0; i < 6; ++i) x[row_order_swing[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -390,17 +390,15 @@ static const int diag_slot_swing[] = {16, 17, 18, 0, 4, 8, 12, 1, 5, 9, 13, 2, 6
 static const int off_start_swing[] = {0, 0, 0, 0, 0, 2, 6, 10};
 static const int off_col_swing[] = {0, 1, 0, 1, 2, 3, 0, 1, 2, 3};
 static const int off_value_swing[] = {1, 2, 4, 5, 6, 7, 9, 10, 11, 12};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_swing) */
-static void solve_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_swing) */
+static void solve_swing_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[3];
     y[1] = b[4];
     y[2] = b[5];
     y[3] = b[6];
-    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
-    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
-    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
-    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { double g0 = y[0 + perm[0]], g1 = y[0 + perm[1]], g2 = y[0 + perm[2]], g3 = y[0 + perm[3]]; y[0] = g0; y[1] = g1; y[2] = g2; y[3] = g3; }
     y[1] -= A[1] * y[0];
     y[2] -= A[2] * y[0];
     y[3] -= A[3] * y[0];
@@ -426,9 +424,10 @@ static void solve_swing_0(const double *restrict A, const double *restrict off, 
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_swing_0(A, off, piv, b, y);
-    for (int j = 0; j < 7; ++j) x[col_order_swing[j]] = y[j];
+static void solve_swing(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_swing_0(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[6] = y[3]; x[0] = y[4]; x[1] = y[5];
+    x[2] = y[6];
 }
 
 /* the first permuted row of each function above */
@@ -436,15 +435,16 @@ static const int solve_rows_swing[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_swing(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_swing(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_swing[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_swing_0(A, off, piv, b, y);
-    for (int j = 0; j < 7; ++j) x[col_order_swing[j]] = y[j];
+    if (first <= 0) solve_swing_0(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[6] = y[3]; x[0] = y[4]; x[1] = y[5];
+    x[2] = y[6];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_swing) */
-static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_swing_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[6]; w[6] = acc * (1.0 / A[18]); }
     w[0] -= off[6] * w[6];
     w[1] -= off[7] * w[6];
@@ -465,16 +465,13 @@ static void solve_transposed_swing_0(const double *restrict A, const double *res
     { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
     { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
     { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
-    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
-    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
-    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
-    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+    { double g0 = w[0], g1 = w[1], g2 = w[2], g3 = w[3]; w[0 + perm[0]] = g0; w[0 + perm[1]] = g1; w[0 + perm[2]] = g2; w[0 + perm[3]] = g3; }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_swing(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_swing(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 7; ++j) w[j] = c[col_order_swing[j]];
-    solve_transposed_swing_0(A, off, piv, w);
+    solve_transposed_swing_0(A, off, perm, w);
     for (int i = 0; i < 7; ++i) x[row_order_swing[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

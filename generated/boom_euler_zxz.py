@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_zxz.h': 'e51acb4e3a94909963289418105c1eeeb83d581b53a1a24a2c21d6d428b0ed73', 'boom_euler_zxz.c': '3b3516408a373412e7ab6a96fa3c2f6b39747521b7ff3b9315ee16d1af9f9ae4'}
+C_FILES = {'boom_euler_zxz.h': 'e51acb4e3a94909963289418105c1eeeb83d581b53a1a24a2c21d6d428b0ed73', 'boom_euler_zxz.c': '99bd174f9f1345da412a44d350fbd63f943b4e3fa0f71673ee844678706adf3c'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -12530,17 +12530,15 @@ static const int diag_slot_digging[] = {16, 20, 24, 28, 17, 21, 25, 29, 18, 22, 
 static const int off_start_digging[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
 static const int off_col_digging[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_digging[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_digging) */
-static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_digging) */
+static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[3];
     y[1] = b[4];
     y[2] = b[80];
     y[3] = b[108];
-    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
-    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
-    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
-    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { double g0 = y[0 + perm[0]], g1 = y[0 + perm[1]], g2 = y[0 + perm[2]], g3 = y[0 + perm[3]]; y[0] = g0; y[1] = g1; y[2] = g2; y[3] = g3; }
     y[1] -= A[1] * y[0];
     y[2] -= A[2] * y[0];
     y[3] -= A[3] * y[0];
@@ -12561,10 +12559,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
     { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
     { double acc = b[81]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
-    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
-    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    { double g0 = y[4 + perm[4]], g1 = y[4 + perm[5]], g2 = y[4 + perm[6]], g3 = y[4 + perm[7]]; y[4] = g0; y[5] = g1; y[6] = g2; y[7] = g3; }
     y[5] -= A[17] * y[4];
     y[6] -= A[18] * y[4];
     y[7] -= A[19] * y[4];
@@ -12582,7 +12577,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[4] -= A[20] * y[5];
     y[4] *= 1.0 / A[16];
 }
-static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[5]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[4]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[7]; y[8] = acc; }
     { double acc = b[6]; acc -= off[24] * y[0]; acc -= off[25] * y[1]; acc -= off[26] * y[2]; acc -= off[27] * y[3]; acc -= off[28] * y[4]; acc -= off[29] * y[5]; acc -= off[30] * y[6]; acc -= off[31] * y[7]; y[9] = acc; }
     { double acc = b[7]; acc -= off[32] * y[0]; acc -= off[33] * y[1]; acc -= off[34] * y[2]; acc -= off[35] * y[3]; acc -= off[36] * y[4]; acc -= off[37] * y[5]; acc -= off[38] * y[6]; acc -= off[39] * y[7]; y[10] = acc; }
@@ -12607,30 +12602,7 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[29] = b[86];
     y[30] = b[87];
     y[31] = b[109];
-    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
-    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
-    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
-    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
-    { int p = 8 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 8 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 8 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 8 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 8 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 8 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 8 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 8 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 8 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 8 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 8 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 8 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 8 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 8 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 8 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 8 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
-    { int p = 8 + piv[28]; double t = y[28]; y[28] = y[p]; y[p] = t; }
-    { int p = 8 + piv[29]; double t = y[29]; y[29] = y[p]; y[p] = t; }
-    { int p = 8 + piv[30]; double t = y[30]; y[30] = y[p]; y[p] = t; }
-    { int p = 8 + piv[31]; double t = y[31]; y[31] = y[p]; y[p] = t; }
+    { double g0 = y[8 + perm[8]], g1 = y[8 + perm[9]], g2 = y[8 + perm[10]], g3 = y[8 + perm[11]], g4 = y[8 + perm[12]], g5 = y[8 + perm[13]], g6 = y[8 + perm[14]], g7 = y[8 + perm[15]], g8 = y[8 + perm[16]], g9 = y[8 + perm[17]], g10 = y[8 + perm[18]], g11 = y[8 + perm[19]], g12 = y[8 + perm[20]], g13 = y[8 + perm[21]], g14 = y[8 + perm[22]], g15 = y[8 + perm[23]], g16 = y[8 + perm[24]], g17 = y[8 + perm[25]], g18 = y[8 + perm[26]], g19 = y[8 + perm[27]], g20 = y[8 + perm[28]], g21 = y[8 + perm[29]], g22 = y[8 + perm[30]], g23 = y[8 + perm[31]]; y[8] = g0; y[9] = g1; y[10] = g2; y[11] = g3; y[12] = g4; y[13] = g5; y[14] = g6; y[15] = g7; y[16] = g8; y[17] = g9; y[18] = g10; y[19] = g11; y[20] = g12; y[21] = g13; y[22] = g14; y[23] = g15; y[24] = g16; y[25] = g17; y[26] = g18; y[27] = g19; y[28] = g20; y[29] = g21; y[30] = g22; y[31] = g23; }
     y[9] -= A[33] * y[8];
     y[10] -= A[34] * y[8];
     y[11] -= A[35] * y[8];
@@ -13208,7 +13180,7 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[8] -= A[56] * y[9];
     y[8] *= 1.0 / A[32];
 }
-static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[22]; acc -= off[76] * y[0]; acc -= off[77] * y[1]; acc -= off[78] * y[2]; acc -= off[79] * y[3]; acc -= off[80] * y[4]; acc -= off[81] * y[5]; acc -= off[82] * y[6]; acc -= off[83] * y[7]; y[32] = acc; }
     { double acc = b[23]; acc -= off[84] * y[0]; acc -= off[85] * y[1]; acc -= off[86] * y[2]; acc -= off[87] * y[3]; acc -= off[88] * y[4]; acc -= off[89] * y[5]; acc -= off[90] * y[6]; acc -= off[91] * y[7]; y[33] = acc; }
     { double acc = b[24]; acc -= off[92] * y[0]; acc -= off[93] * y[1]; acc -= off[94] * y[2]; acc -= off[95] * y[3]; acc -= off[96] * y[4]; acc -= off[97] * y[5]; acc -= off[98] * y[6]; acc -= off[99] * y[7]; y[34] = acc; }
@@ -13225,22 +13197,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[45] = b[89];
     y[46] = b[90];
     y[47] = b[91];
-    { int p = 32 + piv[32]; double t = y[32]; y[32] = y[p]; y[p] = t; }
-    { int p = 32 + piv[33]; double t = y[33]; y[33] = y[p]; y[p] = t; }
-    { int p = 32 + piv[34]; double t = y[34]; y[34] = y[p]; y[p] = t; }
-    { int p = 32 + piv[35]; double t = y[35]; y[35] = y[p]; y[p] = t; }
-    { int p = 32 + piv[36]; double t = y[36]; y[36] = y[p]; y[p] = t; }
-    { int p = 32 + piv[37]; double t = y[37]; y[37] = y[p]; y[p] = t; }
-    { int p = 32 + piv[38]; double t = y[38]; y[38] = y[p]; y[p] = t; }
-    { int p = 32 + piv[39]; double t = y[39]; y[39] = y[p]; y[p] = t; }
-    { int p = 32 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 32 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
-    { int p = 32 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 32 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
-    { int p = 32 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 32 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 32 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 32 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
+    { double g0 = y[32 + perm[32]], g1 = y[32 + perm[33]], g2 = y[32 + perm[34]], g3 = y[32 + perm[35]], g4 = y[32 + perm[36]], g5 = y[32 + perm[37]], g6 = y[32 + perm[38]], g7 = y[32 + perm[39]], g8 = y[32 + perm[40]], g9 = y[32 + perm[41]], g10 = y[32 + perm[42]], g11 = y[32 + perm[43]], g12 = y[32 + perm[44]], g13 = y[32 + perm[45]], g14 = y[32 + perm[46]], g15 = y[32 + perm[47]]; y[32] = g0; y[33] = g1; y[34] = g2; y[35] = g3; y[36] = g4; y[37] = g5; y[38] = g6; y[39] = g7; y[40] = g8; y[41] = g9; y[42] = g10; y[43] = g11; y[44] = g12; y[45] = g13; y[46] = g14; y[47] = g15; }
     y[33] -= A[609] * y[32];
     y[34] -= A[610] * y[32];
     y[35] -= A[611] * y[32];
@@ -13498,7 +13455,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[32] -= A[624] * y[33];
     y[32] *= 1.0 / A[608];
 }
-static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[34]; acc -= off[128] * y[8]; acc -= off[129] * y[9]; acc -= off[130] * y[10]; acc -= off[131] * y[11]; acc -= off[132] * y[12]; acc -= off[133] * y[24]; acc -= off[134] * y[25]; acc -= off[135] * y[26]; y[48] = acc; }
     { double acc = b[35]; acc -= off[136] * y[8]; acc -= off[137] * y[9]; acc -= off[138] * y[10]; acc -= off[139] * y[11]; acc -= off[140] * y[12]; acc -= off[141] * y[24]; acc -= off[142] * y[25]; acc -= off[143] * y[26]; y[49] = acc; }
     { double acc = b[36]; acc -= off[144] * y[8]; acc -= off[145] * y[9]; acc -= off[146] * y[10]; acc -= off[147] * y[11]; acc -= off[148] * y[12]; acc -= off[149] * y[24]; acc -= off[150] * y[25]; acc -= off[151] * y[26]; y[50] = acc; }
@@ -13523,30 +13480,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[69] = b[96];
     y[70] = b[97];
     y[71] = b[110];
-    { int p = 48 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 48 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 48 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 48 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 48 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 48 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
-    { int p = 48 + piv[54]; double t = y[54]; y[54] = y[p]; y[p] = t; }
-    { int p = 48 + piv[55]; double t = y[55]; y[55] = y[p]; y[p] = t; }
-    { int p = 48 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 48 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
-    { int p = 48 + piv[58]; double t = y[58]; y[58] = y[p]; y[p] = t; }
-    { int p = 48 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 48 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
-    { int p = 48 + piv[61]; double t = y[61]; y[61] = y[p]; y[p] = t; }
-    { int p = 48 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 48 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 48 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 48 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 48 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 48 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 48 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 48 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 48 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 48 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
+    { double g0 = y[48 + perm[48]], g1 = y[48 + perm[49]], g2 = y[48 + perm[50]], g3 = y[48 + perm[51]], g4 = y[48 + perm[52]], g5 = y[48 + perm[53]], g6 = y[48 + perm[54]], g7 = y[48 + perm[55]], g8 = y[48 + perm[56]], g9 = y[48 + perm[57]], g10 = y[48 + perm[58]], g11 = y[48 + perm[59]], g12 = y[48 + perm[60]], g13 = y[48 + perm[61]], g14 = y[48 + perm[62]], g15 = y[48 + perm[63]], g16 = y[48 + perm[64]], g17 = y[48 + perm[65]], g18 = y[48 + perm[66]], g19 = y[48 + perm[67]], g20 = y[48 + perm[68]], g21 = y[48 + perm[69]], g22 = y[48 + perm[70]], g23 = y[48 + perm[71]]; y[48] = g0; y[49] = g1; y[50] = g2; y[51] = g3; y[52] = g4; y[53] = g5; y[54] = g6; y[55] = g7; y[56] = g8; y[57] = g9; y[58] = g10; y[59] = g11; y[60] = g12; y[61] = g13; y[62] = g14; y[63] = g15; y[64] = g16; y[65] = g17; y[66] = g18; y[67] = g19; y[68] = g20; y[69] = g21; y[70] = g22; y[71] = g23; }
     y[49] -= A[865] * y[48];
     y[50] -= A[866] * y[48];
     y[51] -= A[867] * y[48];
@@ -14124,7 +14058,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[48] -= A[888] * y[49];
     y[48] *= 1.0 / A[864];
 }
-static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[56]; acc -= off[188] * y[48]; acc -= off[189] * y[49]; acc -= off[190] * y[50]; acc -= off[191] * y[51]; acc -= off[192] * y[52]; acc -= off[193] * y[62]; acc -= off[194] * y[65]; acc -= off[195] * y[66]; y[72] = acc; }
     { double acc = b[57]; acc -= off[196] * y[48]; acc -= off[197] * y[49]; acc -= off[198] * y[50]; acc -= off[199] * y[51]; acc -= off[200] * y[52]; acc -= off[201] * y[62]; acc -= off[202] * y[65]; acc -= off[203] * y[66]; y[73] = acc; }
     { double acc = b[58]; acc -= off[204] * y[48]; acc -= off[205] * y[49]; acc -= off[206] * y[50]; acc -= off[207] * y[51]; acc -= off[208] * y[52]; acc -= off[209] * y[62]; acc -= off[210] * y[65]; acc -= off[211] * y[66]; y[74] = acc; }
@@ -14149,30 +14083,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     y[93] = b[102];
     y[94] = b[103];
     y[95] = b[111];
-    { int p = 72 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 72 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 72 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
-    { int p = 72 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 72 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 72 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 72 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 72 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 72 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
-    { int p = 72 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 72 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 72 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
-    { int p = 72 + piv[84]; double t = y[84]; y[84] = y[p]; y[p] = t; }
-    { int p = 72 + piv[85]; double t = y[85]; y[85] = y[p]; y[p] = t; }
-    { int p = 72 + piv[86]; double t = y[86]; y[86] = y[p]; y[p] = t; }
-    { int p = 72 + piv[87]; double t = y[87]; y[87] = y[p]; y[p] = t; }
-    { int p = 72 + piv[88]; double t = y[88]; y[88] = y[p]; y[p] = t; }
-    { int p = 72 + piv[89]; double t = y[89]; y[89] = y[p]; y[p] = t; }
-    { int p = 72 + piv[90]; double t = y[90]; y[90] = y[p]; y[p] = t; }
-    { int p = 72 + piv[91]; double t = y[91]; y[91] = y[p]; y[p] = t; }
-    { int p = 72 + piv[92]; double t = y[92]; y[92] = y[p]; y[p] = t; }
-    { int p = 72 + piv[93]; double t = y[93]; y[93] = y[p]; y[p] = t; }
-    { int p = 72 + piv[94]; double t = y[94]; y[94] = y[p]; y[p] = t; }
-    { int p = 72 + piv[95]; double t = y[95]; y[95] = y[p]; y[p] = t; }
+    { double g0 = y[72 + perm[72]], g1 = y[72 + perm[73]], g2 = y[72 + perm[74]], g3 = y[72 + perm[75]], g4 = y[72 + perm[76]], g5 = y[72 + perm[77]], g6 = y[72 + perm[78]], g7 = y[72 + perm[79]], g8 = y[72 + perm[80]], g9 = y[72 + perm[81]], g10 = y[72 + perm[82]], g11 = y[72 + perm[83]], g12 = y[72 + perm[84]], g13 = y[72 + perm[85]], g14 = y[72 + perm[86]], g15 = y[72 + perm[87]], g16 = y[72 + perm[88]], g17 = y[72 + perm[89]], g18 = y[72 + perm[90]], g19 = y[72 + perm[91]], g20 = y[72 + perm[92]], g21 = y[72 + perm[93]], g22 = y[72 + perm[94]], g23 = y[72 + perm[95]]; y[72] = g0; y[73] = g1; y[74] = g2; y[75] = g3; y[76] = g4; y[77] = g5; y[78] = g6; y[79] = g7; y[80] = g8; y[81] = g9; y[82] = g10; y[83] = g11; y[84] = g12; y[85] = g13; y[86] = g14; y[87] = g15; y[88] = g16; y[89] = g17; y[90] = g18; y[91] = g19; y[92] = g20; y[93] = g21; y[94] = g22; y[95] = g23; }
     y[73] -= A[1441] * y[72];
     y[74] -= A[1442] * y[72];
     y[75] -= A[1443] * y[72];
@@ -14750,7 +14661,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     y[72] -= A[1464] * y[73];
     y[72] *= 1.0 / A[1440];
 }
-static void solve_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_5(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[51]; acc -= off[248] * y[48]; acc -= off[249] * y[49]; acc -= off[250] * y[50]; acc -= off[251] * y[51]; acc -= off[252] * y[52]; acc -= off[253] * y[62]; acc -= off[254] * y[65]; acc -= off[255] * y[66]; y[96] = acc; }
     { double acc = b[52]; acc -= off[256] * y[48]; acc -= off[257] * y[49]; acc -= off[258] * y[50]; acc -= off[259] * y[51]; acc -= off[260] * y[52]; acc -= off[261] * y[62]; acc -= off[262] * y[65]; acc -= off[263] * y[66]; y[97] = acc; }
     { double acc = b[53]; acc -= off[264] * y[48]; acc -= off[265] * y[49]; acc -= off[266] * y[50]; acc -= off[267] * y[51]; acc -= off[268] * y[52]; acc -= off[269] * y[62]; acc -= off[270] * y[65]; acc -= off[271] * y[66]; y[98] = acc; }
@@ -14767,22 +14678,7 @@ static void solve_digging_5(const double *restrict A, const double *restrict off
     y[109] = b[105];
     y[110] = b[106];
     y[111] = b[107];
-    { int p = 96 + piv[96]; double t = y[96]; y[96] = y[p]; y[p] = t; }
-    { int p = 96 + piv[97]; double t = y[97]; y[97] = y[p]; y[p] = t; }
-    { int p = 96 + piv[98]; double t = y[98]; y[98] = y[p]; y[p] = t; }
-    { int p = 96 + piv[99]; double t = y[99]; y[99] = y[p]; y[p] = t; }
-    { int p = 96 + piv[100]; double t = y[100]; y[100] = y[p]; y[p] = t; }
-    { int p = 96 + piv[101]; double t = y[101]; y[101] = y[p]; y[p] = t; }
-    { int p = 96 + piv[102]; double t = y[102]; y[102] = y[p]; y[p] = t; }
-    { int p = 96 + piv[103]; double t = y[103]; y[103] = y[p]; y[p] = t; }
-    { int p = 96 + piv[104]; double t = y[104]; y[104] = y[p]; y[p] = t; }
-    { int p = 96 + piv[105]; double t = y[105]; y[105] = y[p]; y[p] = t; }
-    { int p = 96 + piv[106]; double t = y[106]; y[106] = y[p]; y[p] = t; }
-    { int p = 96 + piv[107]; double t = y[107]; y[107] = y[p]; y[p] = t; }
-    { int p = 96 + piv[108]; double t = y[108]; y[108] = y[p]; y[p] = t; }
-    { int p = 96 + piv[109]; double t = y[109]; y[109] = y[p]; y[p] = t; }
-    { int p = 96 + piv[110]; double t = y[110]; y[110] = y[p]; y[p] = t; }
-    { int p = 96 + piv[111]; double t = y[111]; y[111] = y[p]; y[p] = t; }
+    { double g0 = y[96 + perm[96]], g1 = y[96 + perm[97]], g2 = y[96 + perm[98]], g3 = y[96 + perm[99]], g4 = y[96 + perm[100]], g5 = y[96 + perm[101]], g6 = y[96 + perm[102]], g7 = y[96 + perm[103]], g8 = y[96 + perm[104]], g9 = y[96 + perm[105]], g10 = y[96 + perm[106]], g11 = y[96 + perm[107]], g12 = y[96 + perm[108]], g13 = y[96 + perm[109]], g14 = y[96 + perm[110]], g15 = y[96 + perm[111]]; y[96] = g0; y[97] = g1; y[98] = g2; y[99] = g3; y[100] = g4; y[101] = g5; y[102] = g6; y[103] = g7; y[104] = g8; y[105] = g9; y[106] = g10; y[107] = g11; y[108] = g12; y[109] = g13; y[110] = g14; y[111] = g15; }
     y[97] -= A[2017] * y[96];
     y[98] -= A[2018] * y[96];
     y[99] -= A[2019] * y[96];
@@ -15042,14 +14938,32 @@ static void solve_digging_5(const double *restrict A, const double *restrict off
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_digging_0(A, off, piv, b, y);
-    solve_digging_1(A, off, piv, b, y);
-    solve_digging_2(A, off, piv, b, y);
-    solve_digging_3(A, off, piv, b, y);
-    solve_digging_4(A, off, piv, b, y);
-    solve_digging_5(A, off, piv, b, y);
-    for (int j = 0; j < 112; ++j) x[col_order_digging[j]] = y[j];
+static void solve_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_digging_0(A, off, perm, b, y);
+    solve_digging_1(A, off, perm, b, y);
+    solve_digging_2(A, off, perm, b, y);
+    solve_digging_3(A, off, perm, b, y);
+    solve_digging_4(A, off, perm, b, y);
+    solve_digging_5(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[11] = y[8]; x[13] = y[9]; x[14] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[23] = y[13]; x[16] = y[14]; x[17] = y[15]; x[18] = y[16]; x[27] = y[17];
+    x[24] = y[18]; x[20] = y[19]; x[21] = y[20]; x[25] = y[21]; x[29] = y[22]; x[28] = y[23];
+    x[12] = y[24]; x[10] = y[25]; x[15] = y[26]; x[19] = y[27]; x[22] = y[28]; x[26] = y[29];
+    x[31] = y[30]; x[30] = y[31]; x[32] = y[32]; x[33] = y[33]; x[39] = y[34]; x[35] = y[35];
+    x[40] = y[36]; x[41] = y[37]; x[36] = y[38]; x[37] = y[39]; x[42] = y[40]; x[47] = y[41];
+    x[46] = y[42]; x[45] = y[43]; x[34] = y[44]; x[38] = y[45]; x[43] = y[46]; x[44] = y[47];
+    x[48] = y[48]; x[53] = y[49]; x[54] = y[50]; x[51] = y[51]; x[49] = y[52]; x[56] = y[53];
+    x[57] = y[54]; x[63] = y[55]; x[59] = y[56]; x[64] = y[57]; x[65] = y[58]; x[60] = y[59];
+    x[61] = y[60]; x[66] = y[61]; x[52] = y[62]; x[71] = y[63]; x[69] = y[64]; x[50] = y[65];
+    x[55] = y[66]; x[58] = y[67]; x[62] = y[68]; x[67] = y[69]; x[68] = y[70]; x[70] = y[71];
+    x[88] = y[72]; x[93] = y[73]; x[94] = y[74]; x[91] = y[75]; x[90] = y[76]; x[72] = y[77];
+    x[73] = y[78]; x[79] = y[79]; x[75] = y[80]; x[80] = y[81]; x[81] = y[82]; x[76] = y[83];
+    x[77] = y[84]; x[82] = y[85]; x[92] = y[86]; x[84] = y[87]; x[85] = y[88]; x[74] = y[89];
+    x[78] = y[90]; x[83] = y[91]; x[86] = y[92]; x[89] = y[93]; x[95] = y[94]; x[87] = y[95];
+    x[109] = y[96]; x[104] = y[97]; x[110] = y[98]; x[106] = y[99]; x[107] = y[100]; x[101] = y[101];
+    x[103] = y[102]; x[102] = y[103]; x[96] = y[104]; x[97] = y[105]; x[111] = y[106]; x[99] = y[107];
+    x[98] = y[108]; x[100] = y[109]; x[105] = y[110]; x[108] = y[111];
 }
 
 /* the first permuted row of each function above */
@@ -15057,20 +14971,38 @@ static const int solve_rows_digging[] = {0, 8, 32, 48, 72, 96};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_digging_0(A, off, piv, b, y);
-    if (first <= 1) solve_digging_1(A, off, piv, b, y);
-    if (first <= 2) solve_digging_2(A, off, piv, b, y);
-    if (first <= 3) solve_digging_3(A, off, piv, b, y);
-    if (first <= 4) solve_digging_4(A, off, piv, b, y);
-    if (first <= 5) solve_digging_5(A, off, piv, b, y);
-    for (int j = 0; j < 112; ++j) x[col_order_digging[j]] = y[j];
+    if (first <= 0) solve_digging_0(A, off, perm, b, y);
+    if (first <= 1) solve_digging_1(A, off, perm, b, y);
+    if (first <= 2) solve_digging_2(A, off, perm, b, y);
+    if (first <= 3) solve_digging_3(A, off, perm, b, y);
+    if (first <= 4) solve_digging_4(A, off, perm, b, y);
+    if (first <= 5) solve_digging_5(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[11] = y[8]; x[13] = y[9]; x[14] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[23] = y[13]; x[16] = y[14]; x[17] = y[15]; x[18] = y[16]; x[27] = y[17];
+    x[24] = y[18]; x[20] = y[19]; x[21] = y[20]; x[25] = y[21]; x[29] = y[22]; x[28] = y[23];
+    x[12] = y[24]; x[10] = y[25]; x[15] = y[26]; x[19] = y[27]; x[22] = y[28]; x[26] = y[29];
+    x[31] = y[30]; x[30] = y[31]; x[32] = y[32]; x[33] = y[33]; x[39] = y[34]; x[35] = y[35];
+    x[40] = y[36]; x[41] = y[37]; x[36] = y[38]; x[37] = y[39]; x[42] = y[40]; x[47] = y[41];
+    x[46] = y[42]; x[45] = y[43]; x[34] = y[44]; x[38] = y[45]; x[43] = y[46]; x[44] = y[47];
+    x[48] = y[48]; x[53] = y[49]; x[54] = y[50]; x[51] = y[51]; x[49] = y[52]; x[56] = y[53];
+    x[57] = y[54]; x[63] = y[55]; x[59] = y[56]; x[64] = y[57]; x[65] = y[58]; x[60] = y[59];
+    x[61] = y[60]; x[66] = y[61]; x[52] = y[62]; x[71] = y[63]; x[69] = y[64]; x[50] = y[65];
+    x[55] = y[66]; x[58] = y[67]; x[62] = y[68]; x[67] = y[69]; x[68] = y[70]; x[70] = y[71];
+    x[88] = y[72]; x[93] = y[73]; x[94] = y[74]; x[91] = y[75]; x[90] = y[76]; x[72] = y[77];
+    x[73] = y[78]; x[79] = y[79]; x[75] = y[80]; x[80] = y[81]; x[81] = y[82]; x[76] = y[83];
+    x[77] = y[84]; x[82] = y[85]; x[92] = y[86]; x[84] = y[87]; x[85] = y[88]; x[74] = y[89];
+    x[78] = y[90]; x[83] = y[91]; x[86] = y[92]; x[89] = y[93]; x[95] = y[94]; x[87] = y[95];
+    x[109] = y[96]; x[104] = y[97]; x[110] = y[98]; x[106] = y[99]; x[107] = y[100]; x[101] = y[101];
+    x[103] = y[102]; x[102] = y[103]; x[96] = y[104]; x[97] = y[105]; x[111] = y[106]; x[99] = y[107];
+    x[98] = y[108]; x[100] = y[109]; x[105] = y[110]; x[108] = y[111];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
-static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[96]; w[96] = acc * (1.0 / A[2016]); }
     { double acc = w[97]; acc -= A[2032] * w[96]; w[97] = acc * (1.0 / A[2033]); }
     { double acc = w[98]; acc -= A[2048] * w[96]; acc -= A[2049] * w[97]; w[98] = acc * (1.0 / A[2050]); }
@@ -15102,22 +15034,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[98]; acc -= A[2051] * w[99]; acc -= A[2052] * w[100]; acc -= A[2053] * w[101]; acc -= A[2054] * w[102]; acc -= A[2055] * w[103]; acc -= A[2056] * w[104]; acc -= A[2057] * w[105]; acc -= A[2058] * w[106]; acc -= A[2059] * w[107]; acc -= A[2060] * w[108]; acc -= A[2061] * w[109]; acc -= A[2062] * w[110]; acc -= A[2063] * w[111]; w[98] = acc; }
     { double acc = w[97]; acc -= A[2034] * w[98]; acc -= A[2035] * w[99]; acc -= A[2036] * w[100]; acc -= A[2037] * w[101]; acc -= A[2038] * w[102]; acc -= A[2039] * w[103]; acc -= A[2040] * w[104]; acc -= A[2041] * w[105]; acc -= A[2042] * w[106]; acc -= A[2043] * w[107]; acc -= A[2044] * w[108]; acc -= A[2045] * w[109]; acc -= A[2046] * w[110]; acc -= A[2047] * w[111]; w[97] = acc; }
     { double acc = w[96]; acc -= A[2017] * w[97]; acc -= A[2018] * w[98]; acc -= A[2019] * w[99]; acc -= A[2020] * w[100]; acc -= A[2021] * w[101]; acc -= A[2022] * w[102]; acc -= A[2023] * w[103]; acc -= A[2024] * w[104]; acc -= A[2025] * w[105]; acc -= A[2026] * w[106]; acc -= A[2027] * w[107]; acc -= A[2028] * w[108]; acc -= A[2029] * w[109]; acc -= A[2030] * w[110]; acc -= A[2031] * w[111]; w[96] = acc; }
-    { int p = 96 + piv[111]; double t = w[111]; w[111] = w[p]; w[p] = t; }
-    { int p = 96 + piv[110]; double t = w[110]; w[110] = w[p]; w[p] = t; }
-    { int p = 96 + piv[109]; double t = w[109]; w[109] = w[p]; w[p] = t; }
-    { int p = 96 + piv[108]; double t = w[108]; w[108] = w[p]; w[p] = t; }
-    { int p = 96 + piv[107]; double t = w[107]; w[107] = w[p]; w[p] = t; }
-    { int p = 96 + piv[106]; double t = w[106]; w[106] = w[p]; w[p] = t; }
-    { int p = 96 + piv[105]; double t = w[105]; w[105] = w[p]; w[p] = t; }
-    { int p = 96 + piv[104]; double t = w[104]; w[104] = w[p]; w[p] = t; }
-    { int p = 96 + piv[103]; double t = w[103]; w[103] = w[p]; w[p] = t; }
-    { int p = 96 + piv[102]; double t = w[102]; w[102] = w[p]; w[p] = t; }
-    { int p = 96 + piv[101]; double t = w[101]; w[101] = w[p]; w[p] = t; }
-    { int p = 96 + piv[100]; double t = w[100]; w[100] = w[p]; w[p] = t; }
-    { int p = 96 + piv[99]; double t = w[99]; w[99] = w[p]; w[p] = t; }
-    { int p = 96 + piv[98]; double t = w[98]; w[98] = w[p]; w[p] = t; }
-    { int p = 96 + piv[97]; double t = w[97]; w[97] = w[p]; w[p] = t; }
-    { int p = 96 + piv[96]; double t = w[96]; w[96] = w[p]; w[p] = t; }
+    { double g0 = w[96], g1 = w[97], g2 = w[98], g3 = w[99], g4 = w[100], g5 = w[101], g6 = w[102], g7 = w[103], g8 = w[104], g9 = w[105], g10 = w[106], g11 = w[107], g12 = w[108], g13 = w[109], g14 = w[110], g15 = w[111]; w[96 + perm[96]] = g0; w[96 + perm[97]] = g1; w[96 + perm[98]] = g2; w[96 + perm[99]] = g3; w[96 + perm[100]] = g4; w[96 + perm[101]] = g5; w[96 + perm[102]] = g6; w[96 + perm[103]] = g7; w[96 + perm[104]] = g8; w[96 + perm[105]] = g9; w[96 + perm[106]] = g10; w[96 + perm[107]] = g11; w[96 + perm[108]] = g12; w[96 + perm[109]] = g13; w[96 + perm[110]] = g14; w[96 + perm[111]] = g15; }
     w[48] -= off[248] * w[96];
     w[49] -= off[249] * w[96];
     w[50] -= off[250] * w[96];
@@ -15175,7 +15092,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     w[93] -= off[302] * w[103];
     w[94] -= off[303] * w[103];
 }
-static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[72]; w[72] = acc * (1.0 / A[1440]); }
     { double acc = w[73]; acc -= A[1464] * w[72]; w[73] = acc * (1.0 / A[1465]); }
     { double acc = w[74]; acc -= A[1488] * w[72]; acc -= A[1489] * w[73]; w[74] = acc * (1.0 / A[1490]); }
@@ -15223,30 +15140,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[74]; acc -= A[1491] * w[75]; acc -= A[1492] * w[76]; acc -= A[1493] * w[77]; acc -= A[1494] * w[78]; acc -= A[1495] * w[79]; acc -= A[1496] * w[80]; acc -= A[1497] * w[81]; acc -= A[1498] * w[82]; acc -= A[1499] * w[83]; acc -= A[1500] * w[84]; acc -= A[1501] * w[85]; acc -= A[1502] * w[86]; acc -= A[1503] * w[87]; acc -= A[1504] * w[88]; acc -= A[1505] * w[89]; acc -= A[1506] * w[90]; acc -= A[1507] * w[91]; acc -= A[1508] * w[92]; acc -= A[1509] * w[93]; acc -= A[1510] * w[94]; acc -= A[1511] * w[95]; w[74] = acc; }
     { double acc = w[73]; acc -= A[1466] * w[74]; acc -= A[1467] * w[75]; acc -= A[1468] * w[76]; acc -= A[1469] * w[77]; acc -= A[1470] * w[78]; acc -= A[1471] * w[79]; acc -= A[1472] * w[80]; acc -= A[1473] * w[81]; acc -= A[1474] * w[82]; acc -= A[1475] * w[83]; acc -= A[1476] * w[84]; acc -= A[1477] * w[85]; acc -= A[1478] * w[86]; acc -= A[1479] * w[87]; acc -= A[1480] * w[88]; acc -= A[1481] * w[89]; acc -= A[1482] * w[90]; acc -= A[1483] * w[91]; acc -= A[1484] * w[92]; acc -= A[1485] * w[93]; acc -= A[1486] * w[94]; acc -= A[1487] * w[95]; w[73] = acc; }
     { double acc = w[72]; acc -= A[1441] * w[73]; acc -= A[1442] * w[74]; acc -= A[1443] * w[75]; acc -= A[1444] * w[76]; acc -= A[1445] * w[77]; acc -= A[1446] * w[78]; acc -= A[1447] * w[79]; acc -= A[1448] * w[80]; acc -= A[1449] * w[81]; acc -= A[1450] * w[82]; acc -= A[1451] * w[83]; acc -= A[1452] * w[84]; acc -= A[1453] * w[85]; acc -= A[1454] * w[86]; acc -= A[1455] * w[87]; acc -= A[1456] * w[88]; acc -= A[1457] * w[89]; acc -= A[1458] * w[90]; acc -= A[1459] * w[91]; acc -= A[1460] * w[92]; acc -= A[1461] * w[93]; acc -= A[1462] * w[94]; acc -= A[1463] * w[95]; w[72] = acc; }
-    { int p = 72 + piv[95]; double t = w[95]; w[95] = w[p]; w[p] = t; }
-    { int p = 72 + piv[94]; double t = w[94]; w[94] = w[p]; w[p] = t; }
-    { int p = 72 + piv[93]; double t = w[93]; w[93] = w[p]; w[p] = t; }
-    { int p = 72 + piv[92]; double t = w[92]; w[92] = w[p]; w[p] = t; }
-    { int p = 72 + piv[91]; double t = w[91]; w[91] = w[p]; w[p] = t; }
-    { int p = 72 + piv[90]; double t = w[90]; w[90] = w[p]; w[p] = t; }
-    { int p = 72 + piv[89]; double t = w[89]; w[89] = w[p]; w[p] = t; }
-    { int p = 72 + piv[88]; double t = w[88]; w[88] = w[p]; w[p] = t; }
-    { int p = 72 + piv[87]; double t = w[87]; w[87] = w[p]; w[p] = t; }
-    { int p = 72 + piv[86]; double t = w[86]; w[86] = w[p]; w[p] = t; }
-    { int p = 72 + piv[85]; double t = w[85]; w[85] = w[p]; w[p] = t; }
-    { int p = 72 + piv[84]; double t = w[84]; w[84] = w[p]; w[p] = t; }
-    { int p = 72 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 72 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 72 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
-    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
-    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { double g0 = w[72], g1 = w[73], g2 = w[74], g3 = w[75], g4 = w[76], g5 = w[77], g6 = w[78], g7 = w[79], g8 = w[80], g9 = w[81], g10 = w[82], g11 = w[83], g12 = w[84], g13 = w[85], g14 = w[86], g15 = w[87], g16 = w[88], g17 = w[89], g18 = w[90], g19 = w[91], g20 = w[92], g21 = w[93], g22 = w[94], g23 = w[95]; w[72 + perm[72]] = g0; w[72 + perm[73]] = g1; w[72 + perm[74]] = g2; w[72 + perm[75]] = g3; w[72 + perm[76]] = g4; w[72 + perm[77]] = g5; w[72 + perm[78]] = g6; w[72 + perm[79]] = g7; w[72 + perm[80]] = g8; w[72 + perm[81]] = g9; w[72 + perm[82]] = g10; w[72 + perm[83]] = g11; w[72 + perm[84]] = g12; w[72 + perm[85]] = g13; w[72 + perm[86]] = g14; w[72 + perm[87]] = g15; w[72 + perm[88]] = g16; w[72 + perm[89]] = g17; w[72 + perm[90]] = g18; w[72 + perm[91]] = g19; w[72 + perm[92]] = g20; w[72 + perm[93]] = g21; w[72 + perm[94]] = g22; w[72 + perm[95]] = g23; }
     w[48] -= off[188] * w[72];
     w[49] -= off[189] * w[72];
     w[50] -= off[190] * w[72];
@@ -15308,7 +15202,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     w[52] -= off[246] * w[80];
     w[65] -= off[247] * w[80];
 }
-static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[48]; w[48] = acc * (1.0 / A[864]); }
     { double acc = w[49]; acc -= A[888] * w[48]; w[49] = acc * (1.0 / A[889]); }
     { double acc = w[50]; acc -= A[912] * w[48]; acc -= A[913] * w[49]; w[50] = acc * (1.0 / A[914]); }
@@ -15356,30 +15250,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[50]; acc -= A[915] * w[51]; acc -= A[916] * w[52]; acc -= A[917] * w[53]; acc -= A[918] * w[54]; acc -= A[919] * w[55]; acc -= A[920] * w[56]; acc -= A[921] * w[57]; acc -= A[922] * w[58]; acc -= A[923] * w[59]; acc -= A[924] * w[60]; acc -= A[925] * w[61]; acc -= A[926] * w[62]; acc -= A[927] * w[63]; acc -= A[928] * w[64]; acc -= A[929] * w[65]; acc -= A[930] * w[66]; acc -= A[931] * w[67]; acc -= A[932] * w[68]; acc -= A[933] * w[69]; acc -= A[934] * w[70]; acc -= A[935] * w[71]; w[50] = acc; }
     { double acc = w[49]; acc -= A[890] * w[50]; acc -= A[891] * w[51]; acc -= A[892] * w[52]; acc -= A[893] * w[53]; acc -= A[894] * w[54]; acc -= A[895] * w[55]; acc -= A[896] * w[56]; acc -= A[897] * w[57]; acc -= A[898] * w[58]; acc -= A[899] * w[59]; acc -= A[900] * w[60]; acc -= A[901] * w[61]; acc -= A[902] * w[62]; acc -= A[903] * w[63]; acc -= A[904] * w[64]; acc -= A[905] * w[65]; acc -= A[906] * w[66]; acc -= A[907] * w[67]; acc -= A[908] * w[68]; acc -= A[909] * w[69]; acc -= A[910] * w[70]; acc -= A[911] * w[71]; w[49] = acc; }
     { double acc = w[48]; acc -= A[865] * w[49]; acc -= A[866] * w[50]; acc -= A[867] * w[51]; acc -= A[868] * w[52]; acc -= A[869] * w[53]; acc -= A[870] * w[54]; acc -= A[871] * w[55]; acc -= A[872] * w[56]; acc -= A[873] * w[57]; acc -= A[874] * w[58]; acc -= A[875] * w[59]; acc -= A[876] * w[60]; acc -= A[877] * w[61]; acc -= A[878] * w[62]; acc -= A[879] * w[63]; acc -= A[880] * w[64]; acc -= A[881] * w[65]; acc -= A[882] * w[66]; acc -= A[883] * w[67]; acc -= A[884] * w[68]; acc -= A[885] * w[69]; acc -= A[886] * w[70]; acc -= A[887] * w[71]; w[48] = acc; }
-    { int p = 48 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 48 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 48 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 48 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 48 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 48 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 48 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 48 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 48 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 48 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
-    { int p = 48 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
-    { int p = 48 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 48 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
-    { int p = 48 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
-    { int p = 48 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 48 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
-    { int p = 48 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
-    { int p = 48 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
-    { int p = 48 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 48 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 48 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 48 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { double g0 = w[48], g1 = w[49], g2 = w[50], g3 = w[51], g4 = w[52], g5 = w[53], g6 = w[54], g7 = w[55], g8 = w[56], g9 = w[57], g10 = w[58], g11 = w[59], g12 = w[60], g13 = w[61], g14 = w[62], g15 = w[63], g16 = w[64], g17 = w[65], g18 = w[66], g19 = w[67], g20 = w[68], g21 = w[69], g22 = w[70], g23 = w[71]; w[48 + perm[48]] = g0; w[48 + perm[49]] = g1; w[48 + perm[50]] = g2; w[48 + perm[51]] = g3; w[48 + perm[52]] = g4; w[48 + perm[53]] = g5; w[48 + perm[54]] = g6; w[48 + perm[55]] = g7; w[48 + perm[56]] = g8; w[48 + perm[57]] = g9; w[48 + perm[58]] = g10; w[48 + perm[59]] = g11; w[48 + perm[60]] = g12; w[48 + perm[61]] = g13; w[48 + perm[62]] = g14; w[48 + perm[63]] = g15; w[48 + perm[64]] = g16; w[48 + perm[65]] = g17; w[48 + perm[66]] = g18; w[48 + perm[67]] = g19; w[48 + perm[68]] = g20; w[48 + perm[69]] = g21; w[48 + perm[70]] = g22; w[48 + perm[71]] = g23; }
     w[8] -= off[128] * w[48];
     w[9] -= off[129] * w[48];
     w[10] -= off[130] * w[48];
@@ -15441,7 +15312,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[12] -= off[186] * w[56];
     w[25] -= off[187] * w[56];
 }
-static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[32]; w[32] = acc * (1.0 / A[608]); }
     { double acc = w[33]; acc -= A[624] * w[32]; w[33] = acc * (1.0 / A[625]); }
     { double acc = w[34]; acc -= A[640] * w[32]; acc -= A[641] * w[33]; w[34] = acc * (1.0 / A[642]); }
@@ -15473,22 +15344,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[34]; acc -= A[643] * w[35]; acc -= A[644] * w[36]; acc -= A[645] * w[37]; acc -= A[646] * w[38]; acc -= A[647] * w[39]; acc -= A[648] * w[40]; acc -= A[649] * w[41]; acc -= A[650] * w[42]; acc -= A[651] * w[43]; acc -= A[652] * w[44]; acc -= A[653] * w[45]; acc -= A[654] * w[46]; acc -= A[655] * w[47]; w[34] = acc; }
     { double acc = w[33]; acc -= A[626] * w[34]; acc -= A[627] * w[35]; acc -= A[628] * w[36]; acc -= A[629] * w[37]; acc -= A[630] * w[38]; acc -= A[631] * w[39]; acc -= A[632] * w[40]; acc -= A[633] * w[41]; acc -= A[634] * w[42]; acc -= A[635] * w[43]; acc -= A[636] * w[44]; acc -= A[637] * w[45]; acc -= A[638] * w[46]; acc -= A[639] * w[47]; w[33] = acc; }
     { double acc = w[32]; acc -= A[609] * w[33]; acc -= A[610] * w[34]; acc -= A[611] * w[35]; acc -= A[612] * w[36]; acc -= A[613] * w[37]; acc -= A[614] * w[38]; acc -= A[615] * w[39]; acc -= A[616] * w[40]; acc -= A[617] * w[41]; acc -= A[618] * w[42]; acc -= A[619] * w[43]; acc -= A[620] * w[44]; acc -= A[621] * w[45]; acc -= A[622] * w[46]; acc -= A[623] * w[47]; w[32] = acc; }
-    { int p = 32 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 32 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 32 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 32 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
-    { int p = 32 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 32 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
-    { int p = 32 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 32 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
-    { int p = 32 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
-    { int p = 32 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
-    { int p = 32 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
-    { int p = 32 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
-    { int p = 32 + piv[35]; double t = w[35]; w[35] = w[p]; w[p] = t; }
-    { int p = 32 + piv[34]; double t = w[34]; w[34] = w[p]; w[p] = t; }
-    { int p = 32 + piv[33]; double t = w[33]; w[33] = w[p]; w[p] = t; }
-    { int p = 32 + piv[32]; double t = w[32]; w[32] = w[p]; w[p] = t; }
+    { double g0 = w[32], g1 = w[33], g2 = w[34], g3 = w[35], g4 = w[36], g5 = w[37], g6 = w[38], g7 = w[39], g8 = w[40], g9 = w[41], g10 = w[42], g11 = w[43], g12 = w[44], g13 = w[45], g14 = w[46], g15 = w[47]; w[32 + perm[32]] = g0; w[32 + perm[33]] = g1; w[32 + perm[34]] = g2; w[32 + perm[35]] = g3; w[32 + perm[36]] = g4; w[32 + perm[37]] = g5; w[32 + perm[38]] = g6; w[32 + perm[39]] = g7; w[32 + perm[40]] = g8; w[32 + perm[41]] = g9; w[32 + perm[42]] = g10; w[32 + perm[43]] = g11; w[32 + perm[44]] = g12; w[32 + perm[45]] = g13; w[32 + perm[46]] = g14; w[32 + perm[47]] = g15; }
     w[0] -= off[76] * w[32];
     w[1] -= off[77] * w[32];
     w[2] -= off[78] * w[32];
@@ -15542,7 +15398,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[25] -= off[126] * w[43];
     w[26] -= off[127] * w[43];
 }
-static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
     { double acc = w[9]; acc -= A[56] * w[8]; w[9] = acc * (1.0 / A[57]); }
     { double acc = w[10]; acc -= A[80] * w[8]; acc -= A[81] * w[9]; w[10] = acc * (1.0 / A[82]); }
@@ -15590,30 +15446,7 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     { double acc = w[10]; acc -= A[83] * w[11]; acc -= A[84] * w[12]; acc -= A[85] * w[13]; acc -= A[86] * w[14]; acc -= A[87] * w[15]; acc -= A[88] * w[16]; acc -= A[89] * w[17]; acc -= A[90] * w[18]; acc -= A[91] * w[19]; acc -= A[92] * w[20]; acc -= A[93] * w[21]; acc -= A[94] * w[22]; acc -= A[95] * w[23]; acc -= A[96] * w[24]; acc -= A[97] * w[25]; acc -= A[98] * w[26]; acc -= A[99] * w[27]; acc -= A[100] * w[28]; acc -= A[101] * w[29]; acc -= A[102] * w[30]; acc -= A[103] * w[31]; w[10] = acc; }
     { double acc = w[9]; acc -= A[58] * w[10]; acc -= A[59] * w[11]; acc -= A[60] * w[12]; acc -= A[61] * w[13]; acc -= A[62] * w[14]; acc -= A[63] * w[15]; acc -= A[64] * w[16]; acc -= A[65] * w[17]; acc -= A[66] * w[18]; acc -= A[67] * w[19]; acc -= A[68] * w[20]; acc -= A[69] * w[21]; acc -= A[70] * w[22]; acc -= A[71] * w[23]; acc -= A[72] * w[24]; acc -= A[73] * w[25]; acc -= A[74] * w[26]; acc -= A[75] * w[27]; acc -= A[76] * w[28]; acc -= A[77] * w[29]; acc -= A[78] * w[30]; acc -= A[79] * w[31]; w[9] = acc; }
     { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; acc -= A[37] * w[13]; acc -= A[38] * w[14]; acc -= A[39] * w[15]; acc -= A[40] * w[16]; acc -= A[41] * w[17]; acc -= A[42] * w[18]; acc -= A[43] * w[19]; acc -= A[44] * w[20]; acc -= A[45] * w[21]; acc -= A[46] * w[22]; acc -= A[47] * w[23]; acc -= A[48] * w[24]; acc -= A[49] * w[25]; acc -= A[50] * w[26]; acc -= A[51] * w[27]; acc -= A[52] * w[28]; acc -= A[53] * w[29]; acc -= A[54] * w[30]; acc -= A[55] * w[31]; w[8] = acc; }
-    { int p = 8 + piv[31]; double t = w[31]; w[31] = w[p]; w[p] = t; }
-    { int p = 8 + piv[30]; double t = w[30]; w[30] = w[p]; w[p] = t; }
-    { int p = 8 + piv[29]; double t = w[29]; w[29] = w[p]; w[p] = t; }
-    { int p = 8 + piv[28]; double t = w[28]; w[28] = w[p]; w[p] = t; }
-    { int p = 8 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 8 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 8 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 8 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 8 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 8 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 8 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 8 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 8 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 8 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 8 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 8 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 8 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 8 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 8 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 8 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
-    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
-    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
-    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
-    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { double g0 = w[8], g1 = w[9], g2 = w[10], g3 = w[11], g4 = w[12], g5 = w[13], g6 = w[14], g7 = w[15], g8 = w[16], g9 = w[17], g10 = w[18], g11 = w[19], g12 = w[20], g13 = w[21], g14 = w[22], g15 = w[23], g16 = w[24], g17 = w[25], g18 = w[26], g19 = w[27], g20 = w[28], g21 = w[29], g22 = w[30], g23 = w[31]; w[8 + perm[8]] = g0; w[8 + perm[9]] = g1; w[8 + perm[10]] = g2; w[8 + perm[11]] = g3; w[8 + perm[12]] = g4; w[8 + perm[13]] = g5; w[8 + perm[14]] = g6; w[8 + perm[15]] = g7; w[8 + perm[16]] = g8; w[8 + perm[17]] = g9; w[8 + perm[18]] = g10; w[8 + perm[19]] = g11; w[8 + perm[20]] = g12; w[8 + perm[21]] = g13; w[8 + perm[22]] = g14; w[8 + perm[23]] = g15; w[8 + perm[24]] = g16; w[8 + perm[25]] = g17; w[8 + perm[26]] = g18; w[8 + perm[27]] = g19; w[8 + perm[28]] = g20; w[8 + perm[29]] = g21; w[8 + perm[30]] = g22; w[8 + perm[31]] = g23; }
     w[0] -= off[16] * w[8];
     w[1] -= off[17] * w[8];
     w[2] -= off[18] * w[8];
@@ -15675,7 +15508,7 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     w[2] -= off[74] * w[16];
     w[3] -= off[75] * w[16];
 }
-static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
     { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
     { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
@@ -15683,10 +15516,7 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
     { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
     { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
-    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
-    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { double g0 = w[4], g1 = w[5], g2 = w[6], g3 = w[7]; w[4 + perm[4]] = g0; w[4 + perm[5]] = g1; w[4 + perm[6]] = g2; w[4 + perm[7]] = g3; }
     w[0] -= off[0] * w[4];
     w[1] -= off[1] * w[4];
     w[2] -= off[2] * w[4];
@@ -15710,21 +15540,18 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
     { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
     { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
-    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
-    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
-    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
-    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+    { double g0 = w[0], g1 = w[1], g2 = w[2], g3 = w[3]; w[0 + perm[0]] = g0; w[0 + perm[1]] = g1; w[0 + perm[2]] = g2; w[0 + perm[3]] = g3; }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_digging(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 112; ++j) w[j] = c[col_order_digging[j]];
-    solve_transposed_digging_0(A, off, piv, w);
-    solve_transposed_digging_1(A, off, piv, w);
-    solve_transposed_digging_2(A, off, piv, w);
-    solve_transposed_digging_3(A, off, piv, w);
-    solve_transposed_digging_4(A, off, piv, w);
-    solve_transposed_digging_5(A, off, piv, w);
+    solve_transposed_digging_0(A, off, perm, w);
+    solve_transposed_digging_1(A, off, perm, w);
+    solve_transposed_digging_2(A, off, perm, w);
+    solve_transposed_digging_3(A, off, perm, w);
+    solve_transposed_digging_4(A, off, perm, w);
+    solve_transposed_digging_5(A, off, perm, w);
     for (int i = 0; i < 112; ++i) x[row_order_digging[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -15766,17 +15593,15 @@ static const int diag_slot_level_cut[] = {16, 20, 24, 28, 17, 21, 25, 29, 18, 22
 static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 84, 92, 100, 100, 100, 100, 100, 108, 116, 124, 128, 128, 128, 128, 128, 128, 136, 144, 152, 152, 152, 152, 152, 160, 168, 176, 180, 180, 180, 180, 180, 180, 188, 196, 204, 204, 204, 204, 204, 212, 220, 228, 232, 236, 236, 236, 236, 244, 252, 260, 264, 264, 264, 264, 264, 272, 280, 288, 292, 292, 292, 292, 292, 292, 300, 308, 316, 316, 316, 316, 316};
 static const int off_col_level_cut[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 11, 12, 17, 23, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 13, 14, 16, 25, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 21, 22, 27, 31, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93};
 static const int off_value_level_cut[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 212, 213, 214, 208, 209, 211, 210, 215, 228, 229, 230, 224, 225, 227, 226, 231, 244, 245, 246, 240, 241, 243, 242, 247, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 372, 373, 374, 368, 369, 371, 370, 375, 388, 389, 390, 384, 385, 387, 386, 391, 404, 405, 406, 400, 401, 403, 402, 407, 484, 485, 486, 480, 481, 483, 482, 487, 500, 501, 502, 496, 497, 499, 498, 503, 516, 517, 518, 512, 513, 515, 514, 519, 528, 529, 531, 530, 592, 593, 598, 595, 596, 597, 594, 599, 608, 609, 614, 611, 612, 613, 610, 615, 624, 625, 630, 627, 628, 629, 626, 631, 704, 705, 710, 707, 708, 709, 706, 711, 720, 721, 726, 723, 724, 725, 722, 727, 736, 737, 742, 739, 740, 741, 738, 743, 752, 753, 755, 754, 760, 761, 763, 762, 831, 826, 827, 825, 828, 829, 830, 824, 847, 842, 843, 841, 844, 845, 846, 840, 863, 858, 859, 857, 860, 861, 862, 856, 870, 871, 869, 868, 872, 873, 878, 875, 876, 877, 874, 879, 888, 889, 894, 891, 892, 893, 890, 895, 904, 905, 910, 907, 908, 909, 906, 911, 920, 921, 923, 922, 992, 997, 998, 995, 994, 996, 993, 999, 1008, 1013, 1014, 1011, 1010, 1012, 1009, 1015, 1024, 1029, 1030, 1027, 1026, 1028, 1025, 1031};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_level_cut) */
-static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_level_cut) */
+static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[3];
     y[1] = b[4];
     y[2] = b[80];
     y[3] = b[108];
-    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
-    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
-    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
-    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { double g0 = y[0 + perm[0]], g1 = y[0 + perm[1]], g2 = y[0 + perm[2]], g3 = y[0 + perm[3]]; y[0] = g0; y[1] = g1; y[2] = g2; y[3] = g3; }
     y[1] -= A[1] * y[0];
     y[2] -= A[2] * y[0];
     y[3] -= A[3] * y[0];
@@ -15797,10 +15622,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
     { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
     { double acc = b[81]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
-    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
-    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    { double g0 = y[4 + perm[4]], g1 = y[4 + perm[5]], g2 = y[4 + perm[6]], g3 = y[4 + perm[7]]; y[4] = g0; y[5] = g1; y[6] = g2; y[7] = g3; }
     y[5] -= A[17] * y[4];
     y[6] -= A[18] * y[4];
     y[7] -= A[19] * y[4];
@@ -15818,7 +15640,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     y[4] -= A[20] * y[5];
     y[4] *= 1.0 / A[16];
 }
-static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[5]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[4]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[7]; y[8] = acc; }
     { double acc = b[6]; acc -= off[24] * y[0]; acc -= off[25] * y[1]; acc -= off[26] * y[2]; acc -= off[27] * y[3]; acc -= off[28] * y[4]; acc -= off[29] * y[5]; acc -= off[30] * y[6]; acc -= off[31] * y[7]; y[9] = acc; }
     { double acc = b[7]; acc -= off[32] * y[0]; acc -= off[33] * y[1]; acc -= off[34] * y[2]; acc -= off[35] * y[3]; acc -= off[36] * y[4]; acc -= off[37] * y[5]; acc -= off[38] * y[6]; acc -= off[39] * y[7]; y[10] = acc; }
@@ -15843,30 +15665,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[29] = b[109];
     y[30] = b[110];
     y[31] = b[111];
-    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
-    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
-    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
-    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
-    { int p = 8 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 8 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 8 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 8 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 8 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 8 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 8 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 8 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 8 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 8 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 8 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 8 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 8 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 8 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 8 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 8 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
-    { int p = 8 + piv[28]; double t = y[28]; y[28] = y[p]; y[p] = t; }
-    { int p = 8 + piv[29]; double t = y[29]; y[29] = y[p]; y[p] = t; }
-    { int p = 8 + piv[30]; double t = y[30]; y[30] = y[p]; y[p] = t; }
-    { int p = 8 + piv[31]; double t = y[31]; y[31] = y[p]; y[p] = t; }
+    { double g0 = y[8 + perm[8]], g1 = y[8 + perm[9]], g2 = y[8 + perm[10]], g3 = y[8 + perm[11]], g4 = y[8 + perm[12]], g5 = y[8 + perm[13]], g6 = y[8 + perm[14]], g7 = y[8 + perm[15]], g8 = y[8 + perm[16]], g9 = y[8 + perm[17]], g10 = y[8 + perm[18]], g11 = y[8 + perm[19]], g12 = y[8 + perm[20]], g13 = y[8 + perm[21]], g14 = y[8 + perm[22]], g15 = y[8 + perm[23]], g16 = y[8 + perm[24]], g17 = y[8 + perm[25]], g18 = y[8 + perm[26]], g19 = y[8 + perm[27]], g20 = y[8 + perm[28]], g21 = y[8 + perm[29]], g22 = y[8 + perm[30]], g23 = y[8 + perm[31]]; y[8] = g0; y[9] = g1; y[10] = g2; y[11] = g3; y[12] = g4; y[13] = g5; y[14] = g6; y[15] = g7; y[16] = g8; y[17] = g9; y[18] = g10; y[19] = g11; y[20] = g12; y[21] = g13; y[22] = g14; y[23] = g15; y[24] = g16; y[25] = g17; y[26] = g18; y[27] = g19; y[28] = g20; y[29] = g21; y[30] = g22; y[31] = g23; }
     y[9] -= A[33] * y[8];
     y[10] -= A[34] * y[8];
     y[11] -= A[35] * y[8];
@@ -16444,7 +16243,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[8] -= A[56] * y[9];
     y[8] *= 1.0 / A[32];
 }
-static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[10]; acc -= off[48] * y[0]; acc -= off[49] * y[1]; acc -= off[50] * y[2]; acc -= off[51] * y[3]; acc -= off[52] * y[4]; acc -= off[53] * y[5]; acc -= off[54] * y[6]; acc -= off[55] * y[7]; y[32] = acc; }
     { double acc = b[11]; acc -= off[56] * y[0]; acc -= off[57] * y[1]; acc -= off[58] * y[2]; acc -= off[59] * y[3]; acc -= off[60] * y[4]; acc -= off[61] * y[5]; acc -= off[62] * y[6]; acc -= off[63] * y[7]; y[33] = acc; }
     { double acc = b[12]; acc -= off[64] * y[0]; acc -= off[65] * y[1]; acc -= off[66] * y[2]; acc -= off[67] * y[3]; acc -= off[68] * y[4]; acc -= off[69] * y[5]; acc -= off[70] * y[6]; acc -= off[71] * y[7]; y[34] = acc; }
@@ -16461,22 +16260,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[45] = b[85];
     y[46] = b[86];
     y[47] = b[87];
-    { int p = 32 + piv[32]; double t = y[32]; y[32] = y[p]; y[p] = t; }
-    { int p = 32 + piv[33]; double t = y[33]; y[33] = y[p]; y[p] = t; }
-    { int p = 32 + piv[34]; double t = y[34]; y[34] = y[p]; y[p] = t; }
-    { int p = 32 + piv[35]; double t = y[35]; y[35] = y[p]; y[p] = t; }
-    { int p = 32 + piv[36]; double t = y[36]; y[36] = y[p]; y[p] = t; }
-    { int p = 32 + piv[37]; double t = y[37]; y[37] = y[p]; y[p] = t; }
-    { int p = 32 + piv[38]; double t = y[38]; y[38] = y[p]; y[p] = t; }
-    { int p = 32 + piv[39]; double t = y[39]; y[39] = y[p]; y[p] = t; }
-    { int p = 32 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 32 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
-    { int p = 32 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 32 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
-    { int p = 32 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 32 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 32 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 32 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
+    { double g0 = y[32 + perm[32]], g1 = y[32 + perm[33]], g2 = y[32 + perm[34]], g3 = y[32 + perm[35]], g4 = y[32 + perm[36]], g5 = y[32 + perm[37]], g6 = y[32 + perm[38]], g7 = y[32 + perm[39]], g8 = y[32 + perm[40]], g9 = y[32 + perm[41]], g10 = y[32 + perm[42]], g11 = y[32 + perm[43]], g12 = y[32 + perm[44]], g13 = y[32 + perm[45]], g14 = y[32 + perm[46]], g15 = y[32 + perm[47]]; y[32] = g0; y[33] = g1; y[34] = g2; y[35] = g3; y[36] = g4; y[37] = g5; y[38] = g6; y[39] = g7; y[40] = g8; y[41] = g9; y[42] = g10; y[43] = g11; y[44] = g12; y[45] = g13; y[46] = g14; y[47] = g15; }
     y[33] -= A[609] * y[32];
     y[34] -= A[610] * y[32];
     y[35] -= A[611] * y[32];
@@ -16734,7 +16518,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[32] -= A[624] * y[33];
     y[32] *= 1.0 / A[608];
 }
-static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[22]; acc -= off[100] * y[0]; acc -= off[101] * y[1]; acc -= off[102] * y[2]; acc -= off[103] * y[3]; acc -= off[104] * y[4]; acc -= off[105] * y[5]; acc -= off[106] * y[6]; acc -= off[107] * y[7]; y[48] = acc; }
     { double acc = b[23]; acc -= off[108] * y[0]; acc -= off[109] * y[1]; acc -= off[110] * y[2]; acc -= off[111] * y[3]; acc -= off[112] * y[4]; acc -= off[113] * y[5]; acc -= off[114] * y[6]; acc -= off[115] * y[7]; y[49] = acc; }
     { double acc = b[24]; acc -= off[116] * y[0]; acc -= off[117] * y[1]; acc -= off[118] * y[2]; acc -= off[119] * y[3]; acc -= off[120] * y[4]; acc -= off[121] * y[5]; acc -= off[122] * y[6]; acc -= off[123] * y[7]; y[50] = acc; }
@@ -16751,22 +16535,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[61] = b[89];
     y[62] = b[90];
     y[63] = b[91];
-    { int p = 48 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 48 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 48 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 48 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 48 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 48 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
-    { int p = 48 + piv[54]; double t = y[54]; y[54] = y[p]; y[p] = t; }
-    { int p = 48 + piv[55]; double t = y[55]; y[55] = y[p]; y[p] = t; }
-    { int p = 48 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 48 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
-    { int p = 48 + piv[58]; double t = y[58]; y[58] = y[p]; y[p] = t; }
-    { int p = 48 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 48 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
-    { int p = 48 + piv[61]; double t = y[61]; y[61] = y[p]; y[p] = t; }
-    { int p = 48 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 48 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
+    { double g0 = y[48 + perm[48]], g1 = y[48 + perm[49]], g2 = y[48 + perm[50]], g3 = y[48 + perm[51]], g4 = y[48 + perm[52]], g5 = y[48 + perm[53]], g6 = y[48 + perm[54]], g7 = y[48 + perm[55]], g8 = y[48 + perm[56]], g9 = y[48 + perm[57]], g10 = y[48 + perm[58]], g11 = y[48 + perm[59]], g12 = y[48 + perm[60]], g13 = y[48 + perm[61]], g14 = y[48 + perm[62]], g15 = y[48 + perm[63]]; y[48] = g0; y[49] = g1; y[50] = g2; y[51] = g3; y[52] = g4; y[53] = g5; y[54] = g6; y[55] = g7; y[56] = g8; y[57] = g9; y[58] = g10; y[59] = g11; y[60] = g12; y[61] = g13; y[62] = g14; y[63] = g15; }
     y[49] -= A[865] * y[48];
     y[50] -= A[866] * y[48];
     y[51] -= A[867] * y[48];
@@ -17024,7 +16793,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[48] -= A[880] * y[49];
     y[48] *= 1.0 / A[864];
 }
-static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[39]; acc -= off[152] * y[8]; acc -= off[153] * y[9]; acc -= off[154] * y[10]; acc -= off[155] * y[11]; acc -= off[156] * y[12]; acc -= off[157] * y[17]; acc -= off[158] * y[23]; acc -= off[159] * y[24]; y[64] = acc; }
     { double acc = b[40]; acc -= off[160] * y[8]; acc -= off[161] * y[9]; acc -= off[162] * y[10]; acc -= off[163] * y[11]; acc -= off[164] * y[12]; acc -= off[165] * y[17]; acc -= off[166] * y[23]; acc -= off[167] * y[24]; y[65] = acc; }
     { double acc = b[41]; acc -= off[168] * y[8]; acc -= off[169] * y[9]; acc -= off[170] * y[10]; acc -= off[171] * y[11]; acc -= off[172] * y[12]; acc -= off[173] * y[17]; acc -= off[174] * y[23]; acc -= off[175] * y[24]; y[66] = acc; }
@@ -17041,22 +16810,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     y[77] = b[95];
     y[78] = b[96];
     y[79] = b[97];
-    { int p = 64 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 64 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 64 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 64 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 64 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 64 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 64 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 64 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
-    { int p = 64 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 64 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 64 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
-    { int p = 64 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 64 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 64 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 64 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 64 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
+    { double g0 = y[64 + perm[64]], g1 = y[64 + perm[65]], g2 = y[64 + perm[66]], g3 = y[64 + perm[67]], g4 = y[64 + perm[68]], g5 = y[64 + perm[69]], g6 = y[64 + perm[70]], g7 = y[64 + perm[71]], g8 = y[64 + perm[72]], g9 = y[64 + perm[73]], g10 = y[64 + perm[74]], g11 = y[64 + perm[75]], g12 = y[64 + perm[76]], g13 = y[64 + perm[77]], g14 = y[64 + perm[78]], g15 = y[64 + perm[79]]; y[64] = g0; y[65] = g1; y[66] = g2; y[67] = g3; y[68] = g4; y[69] = g5; y[70] = g6; y[71] = g7; y[72] = g8; y[73] = g9; y[74] = g10; y[75] = g11; y[76] = g12; y[77] = g13; y[78] = g14; y[79] = g15; }
     y[65] -= A[1121] * y[64];
     y[66] -= A[1122] * y[64];
     y[67] -= A[1123] * y[64];
@@ -17314,7 +17068,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     y[64] -= A[1136] * y[65];
     y[64] *= 1.0 / A[1120];
 }
-static void solve_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[56]; acc -= off[204] * y[13]; acc -= off[205] * y[14]; acc -= off[206] * y[15]; acc -= off[207] * y[16]; acc -= off[208] * y[19]; acc -= off[209] * y[20]; acc -= off[210] * y[25]; acc -= off[211] * y[26]; y[80] = acc; }
     { double acc = b[57]; acc -= off[212] * y[13]; acc -= off[213] * y[14]; acc -= off[214] * y[15]; acc -= off[215] * y[16]; acc -= off[216] * y[19]; acc -= off[217] * y[20]; acc -= off[218] * y[25]; acc -= off[219] * y[26]; y[81] = acc; }
     { double acc = b[58]; acc -= off[220] * y[13]; acc -= off[221] * y[14]; acc -= off[222] * y[15]; acc -= off[223] * y[16]; acc -= off[224] * y[19]; acc -= off[225] * y[20]; acc -= off[226] * y[25]; acc -= off[227] * y[26]; y[82] = acc; }
@@ -17331,22 +17085,7 @@ static void solve_level_cut_5(const double *restrict A, const double *restrict o
     y[93] = b[103];
     y[94] = b[104];
     y[95] = b[105];
-    { int p = 80 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
-    { int p = 80 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 80 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 80 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
-    { int p = 80 + piv[84]; double t = y[84]; y[84] = y[p]; y[p] = t; }
-    { int p = 80 + piv[85]; double t = y[85]; y[85] = y[p]; y[p] = t; }
-    { int p = 80 + piv[86]; double t = y[86]; y[86] = y[p]; y[p] = t; }
-    { int p = 80 + piv[87]; double t = y[87]; y[87] = y[p]; y[p] = t; }
-    { int p = 80 + piv[88]; double t = y[88]; y[88] = y[p]; y[p] = t; }
-    { int p = 80 + piv[89]; double t = y[89]; y[89] = y[p]; y[p] = t; }
-    { int p = 80 + piv[90]; double t = y[90]; y[90] = y[p]; y[p] = t; }
-    { int p = 80 + piv[91]; double t = y[91]; y[91] = y[p]; y[p] = t; }
-    { int p = 80 + piv[92]; double t = y[92]; y[92] = y[p]; y[p] = t; }
-    { int p = 80 + piv[93]; double t = y[93]; y[93] = y[p]; y[p] = t; }
-    { int p = 80 + piv[94]; double t = y[94]; y[94] = y[p]; y[p] = t; }
-    { int p = 80 + piv[95]; double t = y[95]; y[95] = y[p]; y[p] = t; }
+    { double g0 = y[80 + perm[80]], g1 = y[80 + perm[81]], g2 = y[80 + perm[82]], g3 = y[80 + perm[83]], g4 = y[80 + perm[84]], g5 = y[80 + perm[85]], g6 = y[80 + perm[86]], g7 = y[80 + perm[87]], g8 = y[80 + perm[88]], g9 = y[80 + perm[89]], g10 = y[80 + perm[90]], g11 = y[80 + perm[91]], g12 = y[80 + perm[92]], g13 = y[80 + perm[93]], g14 = y[80 + perm[94]], g15 = y[80 + perm[95]]; y[80] = g0; y[81] = g1; y[82] = g2; y[83] = g3; y[84] = g4; y[85] = g5; y[86] = g6; y[87] = g7; y[88] = g8; y[89] = g9; y[90] = g10; y[91] = g11; y[92] = g12; y[93] = g13; y[94] = g14; y[95] = g15; }
     y[81] -= A[1377] * y[80];
     y[82] -= A[1378] * y[80];
     y[83] -= A[1379] * y[80];
@@ -17604,7 +17343,7 @@ static void solve_level_cut_5(const double *restrict A, const double *restrict o
     y[80] -= A[1392] * y[81];
     y[80] *= 1.0 / A[1376];
 }
-static void solve_level_cut_6(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_6(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[68]; acc -= off[264] * y[13]; acc -= off[265] * y[14]; acc -= off[266] * y[15]; acc -= off[267] * y[16]; acc -= off[268] * y[19]; acc -= off[269] * y[20]; acc -= off[270] * y[25]; acc -= off[271] * y[26]; y[96] = acc; }
     { double acc = b[69]; acc -= off[272] * y[13]; acc -= off[273] * y[14]; acc -= off[274] * y[15]; acc -= off[275] * y[16]; acc -= off[276] * y[19]; acc -= off[277] * y[20]; acc -= off[278] * y[25]; acc -= off[279] * y[26]; y[97] = acc; }
     { double acc = b[70]; acc -= off[280] * y[13]; acc -= off[281] * y[14]; acc -= off[282] * y[15]; acc -= off[283] * y[16]; acc -= off[284] * y[19]; acc -= off[285] * y[20]; acc -= off[286] * y[25]; acc -= off[287] * y[26]; y[98] = acc; }
@@ -17621,22 +17360,7 @@ static void solve_level_cut_6(const double *restrict A, const double *restrict o
     y[109] = b[99];
     y[110] = b[100];
     y[111] = b[101];
-    { int p = 96 + piv[96]; double t = y[96]; y[96] = y[p]; y[p] = t; }
-    { int p = 96 + piv[97]; double t = y[97]; y[97] = y[p]; y[p] = t; }
-    { int p = 96 + piv[98]; double t = y[98]; y[98] = y[p]; y[p] = t; }
-    { int p = 96 + piv[99]; double t = y[99]; y[99] = y[p]; y[p] = t; }
-    { int p = 96 + piv[100]; double t = y[100]; y[100] = y[p]; y[p] = t; }
-    { int p = 96 + piv[101]; double t = y[101]; y[101] = y[p]; y[p] = t; }
-    { int p = 96 + piv[102]; double t = y[102]; y[102] = y[p]; y[p] = t; }
-    { int p = 96 + piv[103]; double t = y[103]; y[103] = y[p]; y[p] = t; }
-    { int p = 96 + piv[104]; double t = y[104]; y[104] = y[p]; y[p] = t; }
-    { int p = 96 + piv[105]; double t = y[105]; y[105] = y[p]; y[p] = t; }
-    { int p = 96 + piv[106]; double t = y[106]; y[106] = y[p]; y[p] = t; }
-    { int p = 96 + piv[107]; double t = y[107]; y[107] = y[p]; y[p] = t; }
-    { int p = 96 + piv[108]; double t = y[108]; y[108] = y[p]; y[p] = t; }
-    { int p = 96 + piv[109]; double t = y[109]; y[109] = y[p]; y[p] = t; }
-    { int p = 96 + piv[110]; double t = y[110]; y[110] = y[p]; y[p] = t; }
-    { int p = 96 + piv[111]; double t = y[111]; y[111] = y[p]; y[p] = t; }
+    { double g0 = y[96 + perm[96]], g1 = y[96 + perm[97]], g2 = y[96 + perm[98]], g3 = y[96 + perm[99]], g4 = y[96 + perm[100]], g5 = y[96 + perm[101]], g6 = y[96 + perm[102]], g7 = y[96 + perm[103]], g8 = y[96 + perm[104]], g9 = y[96 + perm[105]], g10 = y[96 + perm[106]], g11 = y[96 + perm[107]], g12 = y[96 + perm[108]], g13 = y[96 + perm[109]], g14 = y[96 + perm[110]], g15 = y[96 + perm[111]]; y[96] = g0; y[97] = g1; y[98] = g2; y[99] = g3; y[100] = g4; y[101] = g5; y[102] = g6; y[103] = g7; y[104] = g8; y[105] = g9; y[106] = g10; y[107] = g11; y[108] = g12; y[109] = g13; y[110] = g14; y[111] = g15; }
     y[97] -= A[1633] * y[96];
     y[98] -= A[1634] * y[96];
     y[99] -= A[1635] * y[96];
@@ -17896,15 +17620,33 @@ static void solve_level_cut_6(const double *restrict A, const double *restrict o
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_level_cut_0(A, off, piv, b, y);
-    solve_level_cut_1(A, off, piv, b, y);
-    solve_level_cut_2(A, off, piv, b, y);
-    solve_level_cut_3(A, off, piv, b, y);
-    solve_level_cut_4(A, off, piv, b, y);
-    solve_level_cut_5(A, off, piv, b, y);
-    solve_level_cut_6(A, off, piv, b, y);
-    for (int j = 0; j < 112; ++j) x[col_order_level_cut[j]] = y[j];
+static void solve_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_level_cut_0(A, off, perm, b, y);
+    solve_level_cut_1(A, off, perm, b, y);
+    solve_level_cut_2(A, off, perm, b, y);
+    solve_level_cut_3(A, off, perm, b, y);
+    solve_level_cut_4(A, off, perm, b, y);
+    solve_level_cut_5(A, off, perm, b, y);
+    solve_level_cut_6(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[12] = y[8]; x[13] = y[9]; x[14] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[48] = y[13]; x[49] = y[14]; x[54] = y[15]; x[51] = y[16]; x[11] = y[17];
+    x[111] = y[18]; x[52] = y[19]; x[53] = y[20]; x[106] = y[21]; x[107] = y[22]; x[10] = y[23];
+    x[15] = y[24]; x[50] = y[25]; x[55] = y[26]; x[105] = y[27]; x[108] = y[28]; x[109] = y[29];
+    x[110] = y[30]; x[104] = y[31]; x[23] = y[32]; x[16] = y[33]; x[17] = y[34]; x[18] = y[35];
+    x[27] = y[36]; x[24] = y[37]; x[20] = y[38]; x[21] = y[39]; x[25] = y[40]; x[29] = y[41];
+    x[28] = y[42]; x[31] = y[43]; x[19] = y[44]; x[22] = y[45]; x[26] = y[46]; x[30] = y[47];
+    x[32] = y[48]; x[33] = y[49]; x[39] = y[50]; x[35] = y[51]; x[40] = y[52]; x[41] = y[53];
+    x[36] = y[54]; x[37] = y[55]; x[42] = y[56]; x[47] = y[57]; x[46] = y[58]; x[45] = y[59];
+    x[34] = y[60]; x[38] = y[61]; x[43] = y[62]; x[44] = y[63]; x[56] = y[64]; x[57] = y[65];
+    x[63] = y[66]; x[59] = y[67]; x[64] = y[68]; x[65] = y[69]; x[60] = y[70]; x[61] = y[71];
+    x[66] = y[72]; x[71] = y[73]; x[70] = y[74]; x[69] = y[75]; x[58] = y[76]; x[62] = y[77];
+    x[67] = y[78]; x[68] = y[79]; x[88] = y[80]; x[93] = y[81]; x[94] = y[82]; x[91] = y[83];
+    x[90] = y[84]; x[92] = y[85]; x[103] = y[86]; x[102] = y[87]; x[96] = y[88]; x[97] = y[89];
+    x[101] = y[90]; x[99] = y[91]; x[89] = y[92]; x[95] = y[93]; x[98] = y[94]; x[100] = y[95];
+    x[72] = y[96]; x[73] = y[97]; x[79] = y[98]; x[75] = y[99]; x[80] = y[100]; x[81] = y[101];
+    x[76] = y[102]; x[77] = y[103]; x[82] = y[104]; x[87] = y[105]; x[84] = y[106]; x[85] = y[107];
+    x[74] = y[108]; x[78] = y[109]; x[83] = y[110]; x[86] = y[111];
 }
 
 /* the first permuted row of each function above */
@@ -17912,21 +17654,39 @@ static const int solve_rows_level_cut[] = {0, 8, 32, 48, 64, 80, 96};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
-    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
-    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
-    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
-    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
-    if (first <= 5) solve_level_cut_5(A, off, piv, b, y);
-    if (first <= 6) solve_level_cut_6(A, off, piv, b, y);
-    for (int j = 0; j < 112; ++j) x[col_order_level_cut[j]] = y[j];
+    if (first <= 0) solve_level_cut_0(A, off, perm, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, perm, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, perm, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, perm, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, perm, b, y);
+    if (first <= 5) solve_level_cut_5(A, off, perm, b, y);
+    if (first <= 6) solve_level_cut_6(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[12] = y[8]; x[13] = y[9]; x[14] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[48] = y[13]; x[49] = y[14]; x[54] = y[15]; x[51] = y[16]; x[11] = y[17];
+    x[111] = y[18]; x[52] = y[19]; x[53] = y[20]; x[106] = y[21]; x[107] = y[22]; x[10] = y[23];
+    x[15] = y[24]; x[50] = y[25]; x[55] = y[26]; x[105] = y[27]; x[108] = y[28]; x[109] = y[29];
+    x[110] = y[30]; x[104] = y[31]; x[23] = y[32]; x[16] = y[33]; x[17] = y[34]; x[18] = y[35];
+    x[27] = y[36]; x[24] = y[37]; x[20] = y[38]; x[21] = y[39]; x[25] = y[40]; x[29] = y[41];
+    x[28] = y[42]; x[31] = y[43]; x[19] = y[44]; x[22] = y[45]; x[26] = y[46]; x[30] = y[47];
+    x[32] = y[48]; x[33] = y[49]; x[39] = y[50]; x[35] = y[51]; x[40] = y[52]; x[41] = y[53];
+    x[36] = y[54]; x[37] = y[55]; x[42] = y[56]; x[47] = y[57]; x[46] = y[58]; x[45] = y[59];
+    x[34] = y[60]; x[38] = y[61]; x[43] = y[62]; x[44] = y[63]; x[56] = y[64]; x[57] = y[65];
+    x[63] = y[66]; x[59] = y[67]; x[64] = y[68]; x[65] = y[69]; x[60] = y[70]; x[61] = y[71];
+    x[66] = y[72]; x[71] = y[73]; x[70] = y[74]; x[69] = y[75]; x[58] = y[76]; x[62] = y[77];
+    x[67] = y[78]; x[68] = y[79]; x[88] = y[80]; x[93] = y[81]; x[94] = y[82]; x[91] = y[83];
+    x[90] = y[84]; x[92] = y[85]; x[103] = y[86]; x[102] = y[87]; x[96] = y[88]; x[97] = y[89];
+    x[101] = y[90]; x[99] = y[91]; x[89] = y[92]; x[95] = y[93]; x[98] = y[94]; x[100] = y[95];
+    x[72] = y[96]; x[73] = y[97]; x[79] = y[98]; x[75] = y[99]; x[80] = y[100]; x[81] = y[101];
+    x[76] = y[102]; x[77] = y[103]; x[82] = y[104]; x[87] = y[105]; x[84] = y[106]; x[85] = y[107];
+    x[74] = y[108]; x[78] = y[109]; x[83] = y[110]; x[86] = y[111];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
-static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[96]; w[96] = acc * (1.0 / A[1632]); }
     { double acc = w[97]; acc -= A[1648] * w[96]; w[97] = acc * (1.0 / A[1649]); }
     { double acc = w[98]; acc -= A[1664] * w[96]; acc -= A[1665] * w[97]; w[98] = acc * (1.0 / A[1666]); }
@@ -17958,22 +17718,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[98]; acc -= A[1667] * w[99]; acc -= A[1668] * w[100]; acc -= A[1669] * w[101]; acc -= A[1670] * w[102]; acc -= A[1671] * w[103]; acc -= A[1672] * w[104]; acc -= A[1673] * w[105]; acc -= A[1674] * w[106]; acc -= A[1675] * w[107]; acc -= A[1676] * w[108]; acc -= A[1677] * w[109]; acc -= A[1678] * w[110]; acc -= A[1679] * w[111]; w[98] = acc; }
     { double acc = w[97]; acc -= A[1650] * w[98]; acc -= A[1651] * w[99]; acc -= A[1652] * w[100]; acc -= A[1653] * w[101]; acc -= A[1654] * w[102]; acc -= A[1655] * w[103]; acc -= A[1656] * w[104]; acc -= A[1657] * w[105]; acc -= A[1658] * w[106]; acc -= A[1659] * w[107]; acc -= A[1660] * w[108]; acc -= A[1661] * w[109]; acc -= A[1662] * w[110]; acc -= A[1663] * w[111]; w[97] = acc; }
     { double acc = w[96]; acc -= A[1633] * w[97]; acc -= A[1634] * w[98]; acc -= A[1635] * w[99]; acc -= A[1636] * w[100]; acc -= A[1637] * w[101]; acc -= A[1638] * w[102]; acc -= A[1639] * w[103]; acc -= A[1640] * w[104]; acc -= A[1641] * w[105]; acc -= A[1642] * w[106]; acc -= A[1643] * w[107]; acc -= A[1644] * w[108]; acc -= A[1645] * w[109]; acc -= A[1646] * w[110]; acc -= A[1647] * w[111]; w[96] = acc; }
-    { int p = 96 + piv[111]; double t = w[111]; w[111] = w[p]; w[p] = t; }
-    { int p = 96 + piv[110]; double t = w[110]; w[110] = w[p]; w[p] = t; }
-    { int p = 96 + piv[109]; double t = w[109]; w[109] = w[p]; w[p] = t; }
-    { int p = 96 + piv[108]; double t = w[108]; w[108] = w[p]; w[p] = t; }
-    { int p = 96 + piv[107]; double t = w[107]; w[107] = w[p]; w[p] = t; }
-    { int p = 96 + piv[106]; double t = w[106]; w[106] = w[p]; w[p] = t; }
-    { int p = 96 + piv[105]; double t = w[105]; w[105] = w[p]; w[p] = t; }
-    { int p = 96 + piv[104]; double t = w[104]; w[104] = w[p]; w[p] = t; }
-    { int p = 96 + piv[103]; double t = w[103]; w[103] = w[p]; w[p] = t; }
-    { int p = 96 + piv[102]; double t = w[102]; w[102] = w[p]; w[p] = t; }
-    { int p = 96 + piv[101]; double t = w[101]; w[101] = w[p]; w[p] = t; }
-    { int p = 96 + piv[100]; double t = w[100]; w[100] = w[p]; w[p] = t; }
-    { int p = 96 + piv[99]; double t = w[99]; w[99] = w[p]; w[p] = t; }
-    { int p = 96 + piv[98]; double t = w[98]; w[98] = w[p]; w[p] = t; }
-    { int p = 96 + piv[97]; double t = w[97]; w[97] = w[p]; w[p] = t; }
-    { int p = 96 + piv[96]; double t = w[96]; w[96] = w[p]; w[p] = t; }
+    { double g0 = w[96], g1 = w[97], g2 = w[98], g3 = w[99], g4 = w[100], g5 = w[101], g6 = w[102], g7 = w[103], g8 = w[104], g9 = w[105], g10 = w[106], g11 = w[107], g12 = w[108], g13 = w[109], g14 = w[110], g15 = w[111]; w[96 + perm[96]] = g0; w[96 + perm[97]] = g1; w[96 + perm[98]] = g2; w[96 + perm[99]] = g3; w[96 + perm[100]] = g4; w[96 + perm[101]] = g5; w[96 + perm[102]] = g6; w[96 + perm[103]] = g7; w[96 + perm[104]] = g8; w[96 + perm[105]] = g9; w[96 + perm[106]] = g10; w[96 + perm[107]] = g11; w[96 + perm[108]] = g12; w[96 + perm[109]] = g13; w[96 + perm[110]] = g14; w[96 + perm[111]] = g15; }
     w[13] -= off[264] * w[96];
     w[14] -= off[265] * w[96];
     w[15] -= off[266] * w[96];
@@ -18027,7 +17772,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     w[92] -= off[314] * w[107];
     w[93] -= off[315] * w[107];
 }
-static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[80]; w[80] = acc * (1.0 / A[1376]); }
     { double acc = w[81]; acc -= A[1392] * w[80]; w[81] = acc * (1.0 / A[1393]); }
     { double acc = w[82]; acc -= A[1408] * w[80]; acc -= A[1409] * w[81]; w[82] = acc * (1.0 / A[1410]); }
@@ -18059,22 +17804,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[82]; acc -= A[1411] * w[83]; acc -= A[1412] * w[84]; acc -= A[1413] * w[85]; acc -= A[1414] * w[86]; acc -= A[1415] * w[87]; acc -= A[1416] * w[88]; acc -= A[1417] * w[89]; acc -= A[1418] * w[90]; acc -= A[1419] * w[91]; acc -= A[1420] * w[92]; acc -= A[1421] * w[93]; acc -= A[1422] * w[94]; acc -= A[1423] * w[95]; w[82] = acc; }
     { double acc = w[81]; acc -= A[1394] * w[82]; acc -= A[1395] * w[83]; acc -= A[1396] * w[84]; acc -= A[1397] * w[85]; acc -= A[1398] * w[86]; acc -= A[1399] * w[87]; acc -= A[1400] * w[88]; acc -= A[1401] * w[89]; acc -= A[1402] * w[90]; acc -= A[1403] * w[91]; acc -= A[1404] * w[92]; acc -= A[1405] * w[93]; acc -= A[1406] * w[94]; acc -= A[1407] * w[95]; w[81] = acc; }
     { double acc = w[80]; acc -= A[1377] * w[81]; acc -= A[1378] * w[82]; acc -= A[1379] * w[83]; acc -= A[1380] * w[84]; acc -= A[1381] * w[85]; acc -= A[1382] * w[86]; acc -= A[1383] * w[87]; acc -= A[1384] * w[88]; acc -= A[1385] * w[89]; acc -= A[1386] * w[90]; acc -= A[1387] * w[91]; acc -= A[1388] * w[92]; acc -= A[1389] * w[93]; acc -= A[1390] * w[94]; acc -= A[1391] * w[95]; w[80] = acc; }
-    { int p = 80 + piv[95]; double t = w[95]; w[95] = w[p]; w[p] = t; }
-    { int p = 80 + piv[94]; double t = w[94]; w[94] = w[p]; w[p] = t; }
-    { int p = 80 + piv[93]; double t = w[93]; w[93] = w[p]; w[p] = t; }
-    { int p = 80 + piv[92]; double t = w[92]; w[92] = w[p]; w[p] = t; }
-    { int p = 80 + piv[91]; double t = w[91]; w[91] = w[p]; w[p] = t; }
-    { int p = 80 + piv[90]; double t = w[90]; w[90] = w[p]; w[p] = t; }
-    { int p = 80 + piv[89]; double t = w[89]; w[89] = w[p]; w[p] = t; }
-    { int p = 80 + piv[88]; double t = w[88]; w[88] = w[p]; w[p] = t; }
-    { int p = 80 + piv[87]; double t = w[87]; w[87] = w[p]; w[p] = t; }
-    { int p = 80 + piv[86]; double t = w[86]; w[86] = w[p]; w[p] = t; }
-    { int p = 80 + piv[85]; double t = w[85]; w[85] = w[p]; w[p] = t; }
-    { int p = 80 + piv[84]; double t = w[84]; w[84] = w[p]; w[p] = t; }
-    { int p = 80 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 80 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 80 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
-    { int p = 80 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
+    { double g0 = w[80], g1 = w[81], g2 = w[82], g3 = w[83], g4 = w[84], g5 = w[85], g6 = w[86], g7 = w[87], g8 = w[88], g9 = w[89], g10 = w[90], g11 = w[91], g12 = w[92], g13 = w[93], g14 = w[94], g15 = w[95]; w[80 + perm[80]] = g0; w[80 + perm[81]] = g1; w[80 + perm[82]] = g2; w[80 + perm[83]] = g3; w[80 + perm[84]] = g4; w[80 + perm[85]] = g5; w[80 + perm[86]] = g6; w[80 + perm[87]] = g7; w[80 + perm[88]] = g8; w[80 + perm[89]] = g9; w[80 + perm[90]] = g10; w[80 + perm[91]] = g11; w[80 + perm[92]] = g12; w[80 + perm[93]] = g13; w[80 + perm[94]] = g14; w[80 + perm[95]] = g15; }
     w[13] -= off[204] * w[80];
     w[14] -= off[205] * w[80];
     w[15] -= off[206] * w[80];
@@ -18136,7 +17866,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[27] -= off[262] * w[91];
     w[31] -= off[263] * w[91];
 }
-static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[64]; w[64] = acc * (1.0 / A[1120]); }
     { double acc = w[65]; acc -= A[1136] * w[64]; w[65] = acc * (1.0 / A[1137]); }
     { double acc = w[66]; acc -= A[1152] * w[64]; acc -= A[1153] * w[65]; w[66] = acc * (1.0 / A[1154]); }
@@ -18168,22 +17898,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     { double acc = w[66]; acc -= A[1155] * w[67]; acc -= A[1156] * w[68]; acc -= A[1157] * w[69]; acc -= A[1158] * w[70]; acc -= A[1159] * w[71]; acc -= A[1160] * w[72]; acc -= A[1161] * w[73]; acc -= A[1162] * w[74]; acc -= A[1163] * w[75]; acc -= A[1164] * w[76]; acc -= A[1165] * w[77]; acc -= A[1166] * w[78]; acc -= A[1167] * w[79]; w[66] = acc; }
     { double acc = w[65]; acc -= A[1138] * w[66]; acc -= A[1139] * w[67]; acc -= A[1140] * w[68]; acc -= A[1141] * w[69]; acc -= A[1142] * w[70]; acc -= A[1143] * w[71]; acc -= A[1144] * w[72]; acc -= A[1145] * w[73]; acc -= A[1146] * w[74]; acc -= A[1147] * w[75]; acc -= A[1148] * w[76]; acc -= A[1149] * w[77]; acc -= A[1150] * w[78]; acc -= A[1151] * w[79]; w[65] = acc; }
     { double acc = w[64]; acc -= A[1121] * w[65]; acc -= A[1122] * w[66]; acc -= A[1123] * w[67]; acc -= A[1124] * w[68]; acc -= A[1125] * w[69]; acc -= A[1126] * w[70]; acc -= A[1127] * w[71]; acc -= A[1128] * w[72]; acc -= A[1129] * w[73]; acc -= A[1130] * w[74]; acc -= A[1131] * w[75]; acc -= A[1132] * w[76]; acc -= A[1133] * w[77]; acc -= A[1134] * w[78]; acc -= A[1135] * w[79]; w[64] = acc; }
-    { int p = 64 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 64 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 64 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 64 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 64 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
-    { int p = 64 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 64 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 64 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
-    { int p = 64 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 64 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 64 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 64 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 64 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 64 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 64 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 64 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { double g0 = w[64], g1 = w[65], g2 = w[66], g3 = w[67], g4 = w[68], g5 = w[69], g6 = w[70], g7 = w[71], g8 = w[72], g9 = w[73], g10 = w[74], g11 = w[75], g12 = w[76], g13 = w[77], g14 = w[78], g15 = w[79]; w[64 + perm[64]] = g0; w[64 + perm[65]] = g1; w[64 + perm[66]] = g2; w[64 + perm[67]] = g3; w[64 + perm[68]] = g4; w[64 + perm[69]] = g5; w[64 + perm[70]] = g6; w[64 + perm[71]] = g7; w[64 + perm[72]] = g8; w[64 + perm[73]] = g9; w[64 + perm[74]] = g10; w[64 + perm[75]] = g11; w[64 + perm[76]] = g12; w[64 + perm[77]] = g13; w[64 + perm[78]] = g14; w[64 + perm[79]] = g15; }
     w[8] -= off[152] * w[64];
     w[9] -= off[153] * w[64];
     w[10] -= off[154] * w[64];
@@ -18237,7 +17952,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     w[25] -= off[202] * w[75];
     w[26] -= off[203] * w[75];
 }
-static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[48]; w[48] = acc * (1.0 / A[864]); }
     { double acc = w[49]; acc -= A[880] * w[48]; w[49] = acc * (1.0 / A[881]); }
     { double acc = w[50]; acc -= A[896] * w[48]; acc -= A[897] * w[49]; w[50] = acc * (1.0 / A[898]); }
@@ -18269,22 +17984,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[50]; acc -= A[899] * w[51]; acc -= A[900] * w[52]; acc -= A[901] * w[53]; acc -= A[902] * w[54]; acc -= A[903] * w[55]; acc -= A[904] * w[56]; acc -= A[905] * w[57]; acc -= A[906] * w[58]; acc -= A[907] * w[59]; acc -= A[908] * w[60]; acc -= A[909] * w[61]; acc -= A[910] * w[62]; acc -= A[911] * w[63]; w[50] = acc; }
     { double acc = w[49]; acc -= A[882] * w[50]; acc -= A[883] * w[51]; acc -= A[884] * w[52]; acc -= A[885] * w[53]; acc -= A[886] * w[54]; acc -= A[887] * w[55]; acc -= A[888] * w[56]; acc -= A[889] * w[57]; acc -= A[890] * w[58]; acc -= A[891] * w[59]; acc -= A[892] * w[60]; acc -= A[893] * w[61]; acc -= A[894] * w[62]; acc -= A[895] * w[63]; w[49] = acc; }
     { double acc = w[48]; acc -= A[865] * w[49]; acc -= A[866] * w[50]; acc -= A[867] * w[51]; acc -= A[868] * w[52]; acc -= A[869] * w[53]; acc -= A[870] * w[54]; acc -= A[871] * w[55]; acc -= A[872] * w[56]; acc -= A[873] * w[57]; acc -= A[874] * w[58]; acc -= A[875] * w[59]; acc -= A[876] * w[60]; acc -= A[877] * w[61]; acc -= A[878] * w[62]; acc -= A[879] * w[63]; w[48] = acc; }
-    { int p = 48 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 48 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
-    { int p = 48 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
-    { int p = 48 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 48 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
-    { int p = 48 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
-    { int p = 48 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 48 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
-    { int p = 48 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
-    { int p = 48 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
-    { int p = 48 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 48 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 48 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 48 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { double g0 = w[48], g1 = w[49], g2 = w[50], g3 = w[51], g4 = w[52], g5 = w[53], g6 = w[54], g7 = w[55], g8 = w[56], g9 = w[57], g10 = w[58], g11 = w[59], g12 = w[60], g13 = w[61], g14 = w[62], g15 = w[63]; w[48 + perm[48]] = g0; w[48 + perm[49]] = g1; w[48 + perm[50]] = g2; w[48 + perm[51]] = g3; w[48 + perm[52]] = g4; w[48 + perm[53]] = g5; w[48 + perm[54]] = g6; w[48 + perm[55]] = g7; w[48 + perm[56]] = g8; w[48 + perm[57]] = g9; w[48 + perm[58]] = g10; w[48 + perm[59]] = g11; w[48 + perm[60]] = g12; w[48 + perm[61]] = g13; w[48 + perm[62]] = g14; w[48 + perm[63]] = g15; }
     w[0] -= off[100] * w[48];
     w[1] -= off[101] * w[48];
     w[2] -= off[102] * w[48];
@@ -18338,7 +18038,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     w[23] -= off[150] * w[59];
     w[24] -= off[151] * w[59];
 }
-static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[32]; w[32] = acc * (1.0 / A[608]); }
     { double acc = w[33]; acc -= A[624] * w[32]; w[33] = acc * (1.0 / A[625]); }
     { double acc = w[34]; acc -= A[640] * w[32]; acc -= A[641] * w[33]; w[34] = acc * (1.0 / A[642]); }
@@ -18370,22 +18070,7 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     { double acc = w[34]; acc -= A[643] * w[35]; acc -= A[644] * w[36]; acc -= A[645] * w[37]; acc -= A[646] * w[38]; acc -= A[647] * w[39]; acc -= A[648] * w[40]; acc -= A[649] * w[41]; acc -= A[650] * w[42]; acc -= A[651] * w[43]; acc -= A[652] * w[44]; acc -= A[653] * w[45]; acc -= A[654] * w[46]; acc -= A[655] * w[47]; w[34] = acc; }
     { double acc = w[33]; acc -= A[626] * w[34]; acc -= A[627] * w[35]; acc -= A[628] * w[36]; acc -= A[629] * w[37]; acc -= A[630] * w[38]; acc -= A[631] * w[39]; acc -= A[632] * w[40]; acc -= A[633] * w[41]; acc -= A[634] * w[42]; acc -= A[635] * w[43]; acc -= A[636] * w[44]; acc -= A[637] * w[45]; acc -= A[638] * w[46]; acc -= A[639] * w[47]; w[33] = acc; }
     { double acc = w[32]; acc -= A[609] * w[33]; acc -= A[610] * w[34]; acc -= A[611] * w[35]; acc -= A[612] * w[36]; acc -= A[613] * w[37]; acc -= A[614] * w[38]; acc -= A[615] * w[39]; acc -= A[616] * w[40]; acc -= A[617] * w[41]; acc -= A[618] * w[42]; acc -= A[619] * w[43]; acc -= A[620] * w[44]; acc -= A[621] * w[45]; acc -= A[622] * w[46]; acc -= A[623] * w[47]; w[32] = acc; }
-    { int p = 32 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 32 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 32 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 32 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
-    { int p = 32 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 32 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
-    { int p = 32 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 32 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
-    { int p = 32 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
-    { int p = 32 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
-    { int p = 32 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
-    { int p = 32 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
-    { int p = 32 + piv[35]; double t = w[35]; w[35] = w[p]; w[p] = t; }
-    { int p = 32 + piv[34]; double t = w[34]; w[34] = w[p]; w[p] = t; }
-    { int p = 32 + piv[33]; double t = w[33]; w[33] = w[p]; w[p] = t; }
-    { int p = 32 + piv[32]; double t = w[32]; w[32] = w[p]; w[p] = t; }
+    { double g0 = w[32], g1 = w[33], g2 = w[34], g3 = w[35], g4 = w[36], g5 = w[37], g6 = w[38], g7 = w[39], g8 = w[40], g9 = w[41], g10 = w[42], g11 = w[43], g12 = w[44], g13 = w[45], g14 = w[46], g15 = w[47]; w[32 + perm[32]] = g0; w[32 + perm[33]] = g1; w[32 + perm[34]] = g2; w[32 + perm[35]] = g3; w[32 + perm[36]] = g4; w[32 + perm[37]] = g5; w[32 + perm[38]] = g6; w[32 + perm[39]] = g7; w[32 + perm[40]] = g8; w[32 + perm[41]] = g9; w[32 + perm[42]] = g10; w[32 + perm[43]] = g11; w[32 + perm[44]] = g12; w[32 + perm[45]] = g13; w[32 + perm[46]] = g14; w[32 + perm[47]] = g15; }
     w[0] -= off[48] * w[32];
     w[1] -= off[49] * w[32];
     w[2] -= off[50] * w[32];
@@ -18439,7 +18124,7 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     w[23] -= off[98] * w[43];
     w[24] -= off[99] * w[43];
 }
-static void solve_transposed_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
     { double acc = w[9]; acc -= A[56] * w[8]; w[9] = acc * (1.0 / A[57]); }
     { double acc = w[10]; acc -= A[80] * w[8]; acc -= A[81] * w[9]; w[10] = acc * (1.0 / A[82]); }
@@ -18487,30 +18172,7 @@ static void solve_transposed_level_cut_5(const double *restrict A, const double 
     { double acc = w[10]; acc -= A[83] * w[11]; acc -= A[84] * w[12]; acc -= A[85] * w[13]; acc -= A[86] * w[14]; acc -= A[87] * w[15]; acc -= A[88] * w[16]; acc -= A[89] * w[17]; acc -= A[90] * w[18]; acc -= A[91] * w[19]; acc -= A[92] * w[20]; acc -= A[93] * w[21]; acc -= A[94] * w[22]; acc -= A[95] * w[23]; acc -= A[96] * w[24]; acc -= A[97] * w[25]; acc -= A[98] * w[26]; acc -= A[99] * w[27]; acc -= A[100] * w[28]; acc -= A[101] * w[29]; acc -= A[102] * w[30]; acc -= A[103] * w[31]; w[10] = acc; }
     { double acc = w[9]; acc -= A[58] * w[10]; acc -= A[59] * w[11]; acc -= A[60] * w[12]; acc -= A[61] * w[13]; acc -= A[62] * w[14]; acc -= A[63] * w[15]; acc -= A[64] * w[16]; acc -= A[65] * w[17]; acc -= A[66] * w[18]; acc -= A[67] * w[19]; acc -= A[68] * w[20]; acc -= A[69] * w[21]; acc -= A[70] * w[22]; acc -= A[71] * w[23]; acc -= A[72] * w[24]; acc -= A[73] * w[25]; acc -= A[74] * w[26]; acc -= A[75] * w[27]; acc -= A[76] * w[28]; acc -= A[77] * w[29]; acc -= A[78] * w[30]; acc -= A[79] * w[31]; w[9] = acc; }
     { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; acc -= A[37] * w[13]; acc -= A[38] * w[14]; acc -= A[39] * w[15]; acc -= A[40] * w[16]; acc -= A[41] * w[17]; acc -= A[42] * w[18]; acc -= A[43] * w[19]; acc -= A[44] * w[20]; acc -= A[45] * w[21]; acc -= A[46] * w[22]; acc -= A[47] * w[23]; acc -= A[48] * w[24]; acc -= A[49] * w[25]; acc -= A[50] * w[26]; acc -= A[51] * w[27]; acc -= A[52] * w[28]; acc -= A[53] * w[29]; acc -= A[54] * w[30]; acc -= A[55] * w[31]; w[8] = acc; }
-    { int p = 8 + piv[31]; double t = w[31]; w[31] = w[p]; w[p] = t; }
-    { int p = 8 + piv[30]; double t = w[30]; w[30] = w[p]; w[p] = t; }
-    { int p = 8 + piv[29]; double t = w[29]; w[29] = w[p]; w[p] = t; }
-    { int p = 8 + piv[28]; double t = w[28]; w[28] = w[p]; w[p] = t; }
-    { int p = 8 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 8 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 8 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 8 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 8 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 8 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 8 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 8 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 8 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 8 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 8 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 8 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 8 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 8 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 8 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 8 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
-    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
-    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
-    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
-    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { double g0 = w[8], g1 = w[9], g2 = w[10], g3 = w[11], g4 = w[12], g5 = w[13], g6 = w[14], g7 = w[15], g8 = w[16], g9 = w[17], g10 = w[18], g11 = w[19], g12 = w[20], g13 = w[21], g14 = w[22], g15 = w[23], g16 = w[24], g17 = w[25], g18 = w[26], g19 = w[27], g20 = w[28], g21 = w[29], g22 = w[30], g23 = w[31]; w[8 + perm[8]] = g0; w[8 + perm[9]] = g1; w[8 + perm[10]] = g2; w[8 + perm[11]] = g3; w[8 + perm[12]] = g4; w[8 + perm[13]] = g5; w[8 + perm[14]] = g6; w[8 + perm[15]] = g7; w[8 + perm[16]] = g8; w[8 + perm[17]] = g9; w[8 + perm[18]] = g10; w[8 + perm[19]] = g11; w[8 + perm[20]] = g12; w[8 + perm[21]] = g13; w[8 + perm[22]] = g14; w[8 + perm[23]] = g15; w[8 + perm[24]] = g16; w[8 + perm[25]] = g17; w[8 + perm[26]] = g18; w[8 + perm[27]] = g19; w[8 + perm[28]] = g20; w[8 + perm[29]] = g21; w[8 + perm[30]] = g22; w[8 + perm[31]] = g23; }
     w[0] -= off[16] * w[8];
     w[1] -= off[17] * w[8];
     w[2] -= off[18] * w[8];
@@ -18544,7 +18206,7 @@ static void solve_transposed_level_cut_5(const double *restrict A, const double 
     w[2] -= off[46] * w[12];
     w[3] -= off[47] * w[12];
 }
-static void solve_transposed_level_cut_6(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_6(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
     { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
     { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
@@ -18552,10 +18214,7 @@ static void solve_transposed_level_cut_6(const double *restrict A, const double 
     { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
     { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
     { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
-    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
-    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { double g0 = w[4], g1 = w[5], g2 = w[6], g3 = w[7]; w[4 + perm[4]] = g0; w[4 + perm[5]] = g1; w[4 + perm[6]] = g2; w[4 + perm[7]] = g3; }
     w[0] -= off[0] * w[4];
     w[1] -= off[1] * w[4];
     w[2] -= off[2] * w[4];
@@ -18579,22 +18238,19 @@ static void solve_transposed_level_cut_6(const double *restrict A, const double 
     { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
     { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
     { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
-    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
-    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
-    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
-    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+    { double g0 = w[0], g1 = w[1], g2 = w[2], g3 = w[3]; w[0 + perm[0]] = g0; w[0 + perm[1]] = g1; w[0 + perm[2]] = g2; w[0 + perm[3]] = g3; }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_level_cut(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 112; ++j) w[j] = c[col_order_level_cut[j]];
-    solve_transposed_level_cut_0(A, off, piv, w);
-    solve_transposed_level_cut_1(A, off, piv, w);
-    solve_transposed_level_cut_2(A, off, piv, w);
-    solve_transposed_level_cut_3(A, off, piv, w);
-    solve_transposed_level_cut_4(A, off, piv, w);
-    solve_transposed_level_cut_5(A, off, piv, w);
-    solve_transposed_level_cut_6(A, off, piv, w);
+    solve_transposed_level_cut_0(A, off, perm, w);
+    solve_transposed_level_cut_1(A, off, perm, w);
+    solve_transposed_level_cut_2(A, off, perm, w);
+    solve_transposed_level_cut_3(A, off, perm, w);
+    solve_transposed_level_cut_4(A, off, perm, w);
+    solve_transposed_level_cut_5(A, off, perm, w);
+    solve_transposed_level_cut_6(A, off, perm, w);
     for (int i = 0; i < 112; ++i) x[row_order_level_cut[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

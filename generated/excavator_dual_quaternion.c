@@ -7837,9 +7837,10 @@ static const int diag_slot_digging[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 29, 
 static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_digging) */
-static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_digging) */
+static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -7848,8 +7849,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -7875,7 +7875,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     { double acc = b[23]; acc -= off[26] * y[1]; acc -= off[27] * y[3]; acc -= off[28] * y[5]; y[14] = acc; }
     y[14] *= 1.0 / A[16];
 }
-static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[29] * y[3]; acc -= off[30] * y[4]; acc -= off[31] * y[5]; y[15] = acc; }
     { double acc = b[9]; acc -= off[32] * y[3]; acc -= off[33] * y[4]; acc -= off[34] * y[5]; y[16] = acc; }
     { double acc = b[13]; acc -= off[35] * y[3]; acc -= off[36] * y[4]; acc -= off[37] * y[5]; y[17] = acc; }
@@ -7888,18 +7888,7 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     { double acc = b[20]; acc -= off[45] * y[10]; y[24] = acc; }
     { double acc = b[21]; acc -= off[46] * y[6]; y[25] = acc; }
     { double acc = b[81]; acc -= off[47] * y[7]; acc -= off[48] * y[11]; acc -= off[49] * y[12]; y[26] = acc; }
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 15 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 15 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 15 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]], g9 = y[15 + perm[24]], g10 = y[15 + perm[25]], g11 = y[15 + perm[26]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; y[24] = g9; y[25] = g10; y[26] = g11; }
     y[16] -= A[18] * y[15];
     y[17] -= A[19] * y[15];
     y[18] -= A[20] * y[15];
@@ -8048,8 +8037,6 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[27] *= 1.0 / A[161];
     { double acc = b[32]; acc -= off[53] * y[10]; acc -= off[54] * y[15]; acc -= off[55] * y[23]; y[28] = acc; }
     y[28] *= 1.0 / A[162];
-}
-static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[31]; acc -= off[56] * y[9]; acc -= off[57] * y[16]; acc -= off[58] * y[23]; y[29] = acc; }
     y[29] *= 1.0 / A[163];
     { double acc = b[34]; acc -= off[59] * y[9]; acc -= off[60] * y[16]; acc -= off[61] * y[23]; y[30] = acc; }
@@ -8062,6 +8049,8 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[33] *= 1.0 / A[167];
     { double acc = b[40]; acc -= off[71] * y[10]; acc -= off[72] * y[15]; acc -= off[73] * y[23]; y[34] = acc; }
     y[34] *= 1.0 / A[168];
+}
+static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[39]; acc -= off[74] * y[9]; acc -= off[75] * y[16]; acc -= off[76] * y[23]; y[35] = acc; }
     y[35] *= 1.0 / A[169];
     { double acc = b[25]; acc -= off[77] * y[3]; acc -= off[78] * y[4]; acc -= off[79] * y[5]; y[36] = acc; }
@@ -8070,12 +8059,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[28]; acc -= off[80] * y[8]; acc -= off[81] * y[13]; acc -= off[82] * y[14]; acc -= off[83] * y[27]; acc -= off[84] * y[28]; acc -= off[85] * y[29]; y[39] = acc; }
     { double acc = b[29]; acc -= off[86] * y[8]; acc -= off[87] * y[13]; acc -= off[88] * y[14]; acc -= off[89] * y[27]; acc -= off[90] * y[28]; acc -= off[91] * y[29]; y[40] = acc; }
     y[41] = b[30];
-    { int p = 36 + piv[36]; double t = y[36]; y[36] = y[p]; y[p] = t; }
-    { int p = 36 + piv[37]; double t = y[37]; y[37] = y[p]; y[p] = t; }
-    { int p = 36 + piv[38]; double t = y[38]; y[38] = y[p]; y[p] = t; }
-    { int p = 36 + piv[39]; double t = y[39]; y[39] = y[p]; y[p] = t; }
-    { int p = 36 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 36 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
+    { double g0 = y[36 + perm[36]], g1 = y[36 + perm[37]], g2 = y[36 + perm[38]], g3 = y[36 + perm[39]], g4 = y[36 + perm[40]], g5 = y[36 + perm[41]]; y[36] = g0; y[37] = g1; y[38] = g2; y[39] = g3; y[40] = g4; y[41] = g5; }
     y[37] -= A[171] * y[36];
     y[38] -= A[172] * y[36];
     y[39] -= A[173] * y[36];
@@ -8113,7 +8097,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[36] -= A[176] * y[37];
     y[36] *= 1.0 / A[170];
 }
-static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[37]; acc -= off[92] * y[15]; acc -= off[93] * y[16]; acc -= off[94] * y[23]; y[42] = acc; }
     { double acc = b[38]; acc -= off[95] * y[15]; acc -= off[96] * y[16]; acc -= off[97] * y[23]; y[43] = acc; }
     { double acc = b[42]; acc -= off[98] * y[15]; acc -= off[99] * y[16]; acc -= off[100] * y[23]; y[44] = acc; }
@@ -8126,18 +8110,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     { double acc = b[49]; acc -= off[108] * y[31]; y[51] = acc; }
     { double acc = b[50]; acc -= off[109] * y[32]; y[52] = acc; }
     { double acc = b[82]; acc -= off[110] * y[33]; acc -= off[111] * y[34]; acc -= off[112] * y[35]; y[53] = acc; }
-    { int p = 42 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 42 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
-    { int p = 42 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 42 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 42 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 42 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
-    { int p = 42 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 42 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 42 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 42 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 42 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 42 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
+    { double g0 = y[42 + perm[42]], g1 = y[42 + perm[43]], g2 = y[42 + perm[44]], g3 = y[42 + perm[45]], g4 = y[42 + perm[46]], g5 = y[42 + perm[47]], g6 = y[42 + perm[48]], g7 = y[42 + perm[49]], g8 = y[42 + perm[50]], g9 = y[42 + perm[51]], g10 = y[42 + perm[52]], g11 = y[42 + perm[53]]; y[42] = g0; y[43] = g1; y[44] = g2; y[45] = g3; y[46] = g4; y[47] = g5; y[48] = g6; y[49] = g7; y[50] = g8; y[51] = g9; y[52] = g10; y[53] = g11; }
     y[43] -= A[207] * y[42];
     y[44] -= A[208] * y[42];
     y[45] -= A[209] * y[42];
@@ -8286,9 +8259,6 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[54] *= 1.0 / A[350];
     { double acc = b[52]; acc -= off[116] * y[31]; acc -= off[117] * y[42]; acc -= off[118] * y[50]; y[55] = acc; }
     y[55] *= 1.0 / A[351];
-}
-static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
-    (void)piv;
     { double acc = b[53]; acc -= off[119] * y[32]; acc -= off[120] * y[42]; acc -= off[121] * y[43]; y[56] = acc; }
     y[56] *= 1.0 / A[352];
     { double acc = b[58]; acc -= off[122] * y[32]; acc -= off[123] * y[42]; acc -= off[124] * y[43]; y[57] = acc; }
@@ -8301,10 +8271,10 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     y[60] *= 1.0 / A[356];
     { double acc = b[68]; acc -= off[134] * y[30]; acc -= off[135] * y[43]; acc -= off[136] * y[50]; y[61] = acc; }
     y[61] *= 1.0 / A[357];
+}
+static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[57]; acc -= off[137] * y[31]; acc -= off[138] * y[42]; acc -= off[139] * y[50]; y[62] = acc; }
     y[62] *= 1.0 / A[358];
-}
-static void solve_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[59]; acc -= off[140] * y[42]; acc -= off[141] * y[43]; acc -= off[142] * y[50]; y[63] = acc; }
     { double acc = b[60]; acc -= off[143] * y[42]; acc -= off[144] * y[43]; acc -= off[145] * y[50]; y[64] = acc; }
     { double acc = b[71]; acc -= off[146] * y[42]; acc -= off[147] * y[43]; acc -= off[148] * y[50]; y[65] = acc; }
@@ -8317,18 +8287,7 @@ static void solve_digging_5(const double *restrict A, const double *restrict off
     { double acc = b[78]; acc -= off[156] * y[62]; y[72] = acc; }
     { double acc = b[79]; acc -= off[157] * y[57]; y[73] = acc; }
     { double acc = b[83]; acc -= off[158] * y[59]; acc -= off[159] * y[60]; acc -= off[160] * y[61]; y[74] = acc; }
-    { int p = 63 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 63 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 63 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 63 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 63 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 63 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 63 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 63 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 63 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
-    { int p = 63 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 63 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 63 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
+    { double g0 = y[63 + perm[63]], g1 = y[63 + perm[64]], g2 = y[63 + perm[65]], g3 = y[63 + perm[66]], g4 = y[63 + perm[67]], g5 = y[63 + perm[68]], g6 = y[63 + perm[69]], g7 = y[63 + perm[70]], g8 = y[63 + perm[71]], g9 = y[63 + perm[72]], g10 = y[63 + perm[73]], g11 = y[63 + perm[74]]; y[63] = g0; y[64] = g1; y[65] = g2; y[66] = g3; y[67] = g4; y[68] = g5; y[69] = g6; y[70] = g7; y[71] = g8; y[72] = g9; y[73] = g10; y[74] = g11; }
     y[64] -= A[360] * y[63];
     y[65] -= A[361] * y[63];
     y[66] -= A[362] * y[63];
@@ -8474,7 +8433,7 @@ static void solve_digging_5(const double *restrict A, const double *restrict off
     y[63] -= A[371] * y[64];
     y[63] *= 1.0 / A[359];
 }
-static void solve_digging_6(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_5(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[54]; acc -= off[161] * y[42]; acc -= off[162] * y[43]; acc -= off[163] * y[50]; y[75] = acc; }
     { double acc = b[55]; acc -= off[164] * y[42]; acc -= off[165] * y[43]; acc -= off[166] * y[50]; y[76] = acc; }
     { double acc = b[61]; acc -= off[167] * y[58]; acc -= off[168] * y[64]; acc -= off[169] * y[72]; y[77] = acc; }
@@ -8484,15 +8443,7 @@ static void solve_digging_6(const double *restrict A, const double *restrict off
     { double acc = b[65]; acc -= off[177] * y[55]; y[81] = acc; }
     { double acc = b[66]; acc -= off[178] * y[56]; y[82] = acc; }
     y[83] = b[67];
-    { int p = 75 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 75 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 75 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 75 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 75 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 75 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
-    { int p = 75 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 75 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 75 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
+    { double g0 = y[75 + perm[75]], g1 = y[75 + perm[76]], g2 = y[75 + perm[77]], g3 = y[75 + perm[78]], g4 = y[75 + perm[79]], g5 = y[75 + perm[80]], g6 = y[75 + perm[81]], g7 = y[75 + perm[82]], g8 = y[75 + perm[83]]; y[75] = g0; y[76] = g1; y[77] = g2; y[78] = g3; y[79] = g4; y[80] = g5; y[81] = g6; y[82] = g7; y[83] = g8; }
     y[76] -= A[504] * y[75];
     y[77] -= A[505] * y[75];
     y[78] -= A[506] * y[75];
@@ -8577,37 +8528,61 @@ static void solve_digging_6(const double *restrict A, const double *restrict off
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_digging_0(A, off, piv, b, y);
-    solve_digging_1(A, off, piv, b, y);
-    solve_digging_2(A, off, piv, b, y);
-    solve_digging_3(A, off, piv, b, y);
-    solve_digging_4(A, off, piv, b, y);
-    solve_digging_5(A, off, piv, b, y);
-    solve_digging_6(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+static void solve_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_digging_0(A, off, perm, b, y);
+    solve_digging_1(A, off, perm, b, y);
+    solve_digging_2(A, off, perm, b, y);
+    solve_digging_3(A, off, perm, b, y);
+    solve_digging_4(A, off, perm, b, y);
+    solve_digging_5(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[2] = y[5];
+    x[11] = y[6]; x[17] = y[7]; x[29] = y[8]; x[9] = y[9]; x[10] = y[10]; x[16] = y[11];
+    x[15] = y[12]; x[27] = y[13]; x[28] = y[14]; x[6] = y[15]; x[7] = y[16]; x[12] = y[17];
+    x[13] = y[18]; x[14] = y[19]; x[18] = y[20]; x[19] = y[21]; x[20] = y[22]; x[8] = y[23];
+    x[22] = y[24]; x[23] = y[25]; x[21] = y[26]; x[35] = y[27]; x[34] = y[28]; x[33] = y[29];
+    x[39] = y[30]; x[40] = y[31]; x[41] = y[32]; x[47] = y[33]; x[46] = y[34]; x[45] = y[35];
+    x[24] = y[36]; x[25] = y[37]; x[26] = y[38]; x[30] = y[39]; x[31] = y[40]; x[32] = y[41];
+    x[36] = y[42]; x[37] = y[43]; x[42] = y[44]; x[43] = y[45]; x[44] = y[46]; x[48] = y[47];
+    x[49] = y[48]; x[50] = y[49]; x[38] = y[50]; x[52] = y[51]; x[53] = y[52]; x[51] = y[53];
+    x[81] = y[54]; x[82] = y[55]; x[83] = y[56]; x[71] = y[57]; x[69] = y[58]; x[59] = y[59];
+    x[58] = y[60]; x[57] = y[61]; x[70] = y[62]; x[66] = y[63]; x[67] = y[64]; x[54] = y[65];
+    x[55] = y[66]; x[56] = y[67]; x[60] = y[68]; x[61] = y[69]; x[62] = y[70]; x[63] = y[71];
+    x[68] = y[72]; x[65] = y[73]; x[64] = y[74]; x[78] = y[75]; x[79] = y[76]; x[75] = y[77];
+    x[72] = y[78]; x[73] = y[79]; x[80] = y[80]; x[76] = y[81]; x[77] = y[82]; x[74] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_digging[] = {0, 15, 29, 42, 56, 63, 75};
+static const int solve_rows_digging[] = {0, 15, 35, 42, 62, 75};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_digging_0(A, off, piv, b, y);
-    if (first <= 1) solve_digging_1(A, off, piv, b, y);
-    if (first <= 2) solve_digging_2(A, off, piv, b, y);
-    if (first <= 3) solve_digging_3(A, off, piv, b, y);
-    if (first <= 4) solve_digging_4(A, off, piv, b, y);
-    if (first <= 5) solve_digging_5(A, off, piv, b, y);
-    if (first <= 6) solve_digging_6(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+    if (first <= 0) solve_digging_0(A, off, perm, b, y);
+    if (first <= 1) solve_digging_1(A, off, perm, b, y);
+    if (first <= 2) solve_digging_2(A, off, perm, b, y);
+    if (first <= 3) solve_digging_3(A, off, perm, b, y);
+    if (first <= 4) solve_digging_4(A, off, perm, b, y);
+    if (first <= 5) solve_digging_5(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[2] = y[5];
+    x[11] = y[6]; x[17] = y[7]; x[29] = y[8]; x[9] = y[9]; x[10] = y[10]; x[16] = y[11];
+    x[15] = y[12]; x[27] = y[13]; x[28] = y[14]; x[6] = y[15]; x[7] = y[16]; x[12] = y[17];
+    x[13] = y[18]; x[14] = y[19]; x[18] = y[20]; x[19] = y[21]; x[20] = y[22]; x[8] = y[23];
+    x[22] = y[24]; x[23] = y[25]; x[21] = y[26]; x[35] = y[27]; x[34] = y[28]; x[33] = y[29];
+    x[39] = y[30]; x[40] = y[31]; x[41] = y[32]; x[47] = y[33]; x[46] = y[34]; x[45] = y[35];
+    x[24] = y[36]; x[25] = y[37]; x[26] = y[38]; x[30] = y[39]; x[31] = y[40]; x[32] = y[41];
+    x[36] = y[42]; x[37] = y[43]; x[42] = y[44]; x[43] = y[45]; x[44] = y[46]; x[48] = y[47];
+    x[49] = y[48]; x[50] = y[49]; x[38] = y[50]; x[52] = y[51]; x[53] = y[52]; x[51] = y[53];
+    x[81] = y[54]; x[82] = y[55]; x[83] = y[56]; x[71] = y[57]; x[69] = y[58]; x[59] = y[59];
+    x[58] = y[60]; x[57] = y[61]; x[70] = y[62]; x[66] = y[63]; x[67] = y[64]; x[54] = y[65];
+    x[55] = y[66]; x[56] = y[67]; x[60] = y[68]; x[61] = y[69]; x[62] = y[70]; x[63] = y[71];
+    x[68] = y[72]; x[65] = y[73]; x[64] = y[74]; x[78] = y[75]; x[79] = y[76]; x[75] = y[77];
+    x[72] = y[78]; x[73] = y[79]; x[80] = y[80]; x[76] = y[81]; x[77] = y[82]; x[74] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
-static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[75]; w[75] = acc * (1.0 / A[503]); }
     { double acc = w[76]; acc -= A[512] * w[75]; w[76] = acc * (1.0 / A[513]); }
     { double acc = w[77]; acc -= A[521] * w[75]; acc -= A[522] * w[76]; w[77] = acc * (1.0 / A[523]); }
@@ -8625,15 +8600,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[77]; acc -= A[524] * w[78]; acc -= A[525] * w[79]; acc -= A[526] * w[80]; acc -= A[527] * w[81]; acc -= A[528] * w[82]; acc -= A[529] * w[83]; w[77] = acc; }
     { double acc = w[76]; acc -= A[514] * w[77]; acc -= A[515] * w[78]; acc -= A[516] * w[79]; acc -= A[517] * w[80]; acc -= A[518] * w[81]; acc -= A[519] * w[82]; acc -= A[520] * w[83]; w[76] = acc; }
     { double acc = w[75]; acc -= A[504] * w[76]; acc -= A[505] * w[77]; acc -= A[506] * w[78]; acc -= A[507] * w[79]; acc -= A[508] * w[80]; acc -= A[509] * w[81]; acc -= A[510] * w[82]; acc -= A[511] * w[83]; w[75] = acc; }
-    { int p = 75 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 75 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 75 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
-    { int p = 75 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 75 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 75 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 75 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 75 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 75 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    { double g0 = w[75], g1 = w[76], g2 = w[77], g3 = w[78], g4 = w[79], g5 = w[80], g6 = w[81], g7 = w[82], g8 = w[83]; w[75 + perm[75]] = g0; w[75 + perm[76]] = g1; w[75 + perm[77]] = g2; w[75 + perm[78]] = g3; w[75 + perm[79]] = g4; w[75 + perm[80]] = g5; w[75 + perm[81]] = g6; w[75 + perm[82]] = g7; w[75 + perm[83]] = g8; }
     w[42] -= off[161] * w[75];
     w[43] -= off[162] * w[75];
     w[50] -= off[163] * w[75];
@@ -8653,7 +8620,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     w[55] -= off[177] * w[81];
     w[56] -= off[178] * w[82];
 }
-static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[63]; w[63] = acc * (1.0 / A[359]); }
     { double acc = w[64]; acc -= A[371] * w[63]; w[64] = acc * (1.0 / A[372]); }
     { double acc = w[65]; acc -= A[383] * w[63]; acc -= A[384] * w[64]; w[65] = acc * (1.0 / A[385]); }
@@ -8677,18 +8644,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[65]; acc -= A[386] * w[66]; acc -= A[387] * w[67]; acc -= A[388] * w[68]; acc -= A[389] * w[69]; acc -= A[390] * w[70]; acc -= A[391] * w[71]; acc -= A[392] * w[72]; acc -= A[393] * w[73]; acc -= A[394] * w[74]; w[65] = acc; }
     { double acc = w[64]; acc -= A[373] * w[65]; acc -= A[374] * w[66]; acc -= A[375] * w[67]; acc -= A[376] * w[68]; acc -= A[377] * w[69]; acc -= A[378] * w[70]; acc -= A[379] * w[71]; acc -= A[380] * w[72]; acc -= A[381] * w[73]; acc -= A[382] * w[74]; w[64] = acc; }
     { double acc = w[63]; acc -= A[360] * w[64]; acc -= A[361] * w[65]; acc -= A[362] * w[66]; acc -= A[363] * w[67]; acc -= A[364] * w[68]; acc -= A[365] * w[69]; acc -= A[366] * w[70]; acc -= A[367] * w[71]; acc -= A[368] * w[72]; acc -= A[369] * w[73]; acc -= A[370] * w[74]; w[63] = acc; }
-    { int p = 63 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 63 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 63 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
-    { int p = 63 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 63 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 63 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 63 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 63 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 63 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 63 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 63 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 63 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { double g0 = w[63], g1 = w[64], g2 = w[65], g3 = w[66], g4 = w[67], g5 = w[68], g6 = w[69], g7 = w[70], g8 = w[71], g9 = w[72], g10 = w[73], g11 = w[74]; w[63 + perm[63]] = g0; w[63 + perm[64]] = g1; w[63 + perm[65]] = g2; w[63 + perm[66]] = g3; w[63 + perm[67]] = g4; w[63 + perm[68]] = g5; w[63 + perm[69]] = g6; w[63 + perm[70]] = g7; w[63 + perm[71]] = g8; w[63 + perm[72]] = g9; w[63 + perm[73]] = g10; w[63 + perm[74]] = g11; }
     w[42] -= off[140] * w[63];
     w[43] -= off[141] * w[63];
     w[50] -= off[142] * w[63];
@@ -8710,9 +8666,6 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     w[59] -= off[158] * w[74];
     w[60] -= off[159] * w[74];
     w[61] -= off[160] * w[74];
-}
-static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
-    (void)piv;
     { double acc = w[62]; w[62] = acc * (1.0 / A[358]); }
     w[31] -= off[137] * w[62];
     w[42] -= off[138] * w[62];
@@ -8741,6 +8694,8 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[32] -= off[119] * w[56];
     w[42] -= off[120] * w[56];
     w[43] -= off[121] * w[56];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[55]; w[55] = acc * (1.0 / A[351]); }
     w[31] -= off[116] * w[55];
     w[42] -= off[117] * w[55];
@@ -8749,8 +8704,6 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[30] -= off[113] * w[54];
     w[43] -= off[114] * w[54];
     w[50] -= off[115] * w[54];
-}
-static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[42]; w[42] = acc * (1.0 / A[206]); }
     { double acc = w[43]; acc -= A[218] * w[42]; w[43] = acc * (1.0 / A[219]); }
     { double acc = w[44]; acc -= A[230] * w[42]; acc -= A[231] * w[43]; w[44] = acc * (1.0 / A[232]); }
@@ -8774,18 +8727,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[44]; acc -= A[233] * w[45]; acc -= A[234] * w[46]; acc -= A[235] * w[47]; acc -= A[236] * w[48]; acc -= A[237] * w[49]; acc -= A[238] * w[50]; acc -= A[239] * w[51]; acc -= A[240] * w[52]; acc -= A[241] * w[53]; w[44] = acc; }
     { double acc = w[43]; acc -= A[220] * w[44]; acc -= A[221] * w[45]; acc -= A[222] * w[46]; acc -= A[223] * w[47]; acc -= A[224] * w[48]; acc -= A[225] * w[49]; acc -= A[226] * w[50]; acc -= A[227] * w[51]; acc -= A[228] * w[52]; acc -= A[229] * w[53]; w[43] = acc; }
     { double acc = w[42]; acc -= A[207] * w[43]; acc -= A[208] * w[44]; acc -= A[209] * w[45]; acc -= A[210] * w[46]; acc -= A[211] * w[47]; acc -= A[212] * w[48]; acc -= A[213] * w[49]; acc -= A[214] * w[50]; acc -= A[215] * w[51]; acc -= A[216] * w[52]; acc -= A[217] * w[53]; w[42] = acc; }
-    { int p = 42 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 42 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 42 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 42 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 42 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 42 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
-    { int p = 42 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 42 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 42 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 42 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
-    { int p = 42 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 42 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
+    { double g0 = w[42], g1 = w[43], g2 = w[44], g3 = w[45], g4 = w[46], g5 = w[47], g6 = w[48], g7 = w[49], g8 = w[50], g9 = w[51], g10 = w[52], g11 = w[53]; w[42 + perm[42]] = g0; w[42 + perm[43]] = g1; w[42 + perm[44]] = g2; w[42 + perm[45]] = g3; w[42 + perm[46]] = g4; w[42 + perm[47]] = g5; w[42 + perm[48]] = g6; w[42 + perm[49]] = g7; w[42 + perm[50]] = g8; w[42 + perm[51]] = g9; w[42 + perm[52]] = g10; w[42 + perm[53]] = g11; }
     w[15] -= off[92] * w[42];
     w[16] -= off[93] * w[42];
     w[23] -= off[94] * w[42];
@@ -8808,7 +8750,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[34] -= off[111] * w[53];
     w[35] -= off[112] * w[53];
 }
-static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[36]; w[36] = acc * (1.0 / A[170]); }
     { double acc = w[37]; acc -= A[176] * w[36]; w[37] = acc * (1.0 / A[177]); }
     { double acc = w[38]; acc -= A[182] * w[36]; acc -= A[183] * w[37]; w[38] = acc * (1.0 / A[184]); }
@@ -8820,12 +8762,7 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     { double acc = w[38]; acc -= A[185] * w[39]; acc -= A[186] * w[40]; acc -= A[187] * w[41]; w[38] = acc; }
     { double acc = w[37]; acc -= A[178] * w[38]; acc -= A[179] * w[39]; acc -= A[180] * w[40]; acc -= A[181] * w[41]; w[37] = acc; }
     { double acc = w[36]; acc -= A[171] * w[37]; acc -= A[172] * w[38]; acc -= A[173] * w[39]; acc -= A[174] * w[40]; acc -= A[175] * w[41]; w[36] = acc; }
-    { int p = 36 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 36 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
-    { int p = 36 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
-    { int p = 36 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
-    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
-    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    { double g0 = w[36], g1 = w[37], g2 = w[38], g3 = w[39], g4 = w[40], g5 = w[41]; w[36 + perm[36]] = g0; w[36 + perm[37]] = g1; w[36 + perm[38]] = g2; w[36 + perm[39]] = g3; w[36 + perm[40]] = g4; w[36 + perm[41]] = g5; }
     w[3] -= off[77] * w[36];
     w[4] -= off[78] * w[36];
     w[5] -= off[79] * w[36];
@@ -8878,7 +8815,7 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     w[15] -= off[51] * w[27];
     w[16] -= off[52] * w[27];
 }
-static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
     { double acc = w[16]; acc -= A[29] * w[15]; w[16] = acc * (1.0 / A[30]); }
     { double acc = w[17]; acc -= A[41] * w[15]; acc -= A[42] * w[16]; w[17] = acc * (1.0 / A[43]); }
@@ -8902,18 +8839,7 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     { double acc = w[17]; acc -= A[44] * w[18]; acc -= A[45] * w[19]; acc -= A[46] * w[20]; acc -= A[47] * w[21]; acc -= A[48] * w[22]; acc -= A[49] * w[23]; acc -= A[50] * w[24]; acc -= A[51] * w[25]; acc -= A[52] * w[26]; w[17] = acc; }
     { double acc = w[16]; acc -= A[31] * w[17]; acc -= A[32] * w[18]; acc -= A[33] * w[19]; acc -= A[34] * w[20]; acc -= A[35] * w[21]; acc -= A[36] * w[22]; acc -= A[37] * w[23]; acc -= A[38] * w[24]; acc -= A[39] * w[25]; acc -= A[40] * w[26]; w[16] = acc; }
     { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; w[15] = acc; }
-    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23], g9 = w[24], g10 = w[25], g11 = w[26]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; w[15 + perm[24]] = g9; w[15 + perm[25]] = g10; w[15 + perm[26]] = g11; }
     w[3] -= off[29] * w[15];
     w[4] -= off[30] * w[15];
     w[5] -= off[31] * w[15];
@@ -8935,8 +8861,6 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     w[7] -= off[47] * w[26];
     w[11] -= off[48] * w[26];
     w[12] -= off[49] * w[26];
-}
-static void solve_transposed_digging_6(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
     w[1] -= off[26] * w[14];
     w[3] -= off[27] * w[14];
@@ -8965,6 +8889,8 @@ static void solve_transposed_digging_6(const double *restrict A, const double *r
     w[2] -= off[8] * w[8];
     w[3] -= off[9] * w[8];
     w[4] -= off[10] * w[8];
+}
+static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
     w[2] -= off[5] * w[7];
     w[3] -= off[6] * w[7];
@@ -8979,27 +8905,25 @@ static void solve_transposed_digging_6(const double *restrict A, const double *r
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_digging(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
-    solve_transposed_digging_0(A, off, piv, w);
-    solve_transposed_digging_1(A, off, piv, w);
-    solve_transposed_digging_2(A, off, piv, w);
-    solve_transposed_digging_3(A, off, piv, w);
-    solve_transposed_digging_4(A, off, piv, w);
-    solve_transposed_digging_5(A, off, piv, w);
-    solve_transposed_digging_6(A, off, piv, w);
+    solve_transposed_digging_0(A, off, perm, w);
+    solve_transposed_digging_1(A, off, perm, w);
+    solve_transposed_digging_2(A, off, perm, w);
+    solve_transposed_digging_3(A, off, perm, w);
+    solve_transposed_digging_4(A, off, perm, w);
+    solve_transposed_digging_5(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging[] = {0, 1, 3, 5};
+static const int input_pieces_digging[] = {0, 1, 3, 4};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -9037,9 +8961,10 @@ static const int diag_slot_level_cut[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 30
 static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 40, 43, 46, 49, 52, 55, 58, 61, 64, 67, 70, 73, 76, 79, 82, 85, 88, 91, 94, 94, 94, 100, 106, 106, 109, 109, 109, 115, 121, 121, 124, 127, 130, 133, 136, 136, 136, 142, 148, 148, 151, 154, 157, 159, 161, 163, 166, 169, 172, 175, 178, 178, 178, 184, 190, 190};
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_level_cut[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_level_cut) */
-static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_level_cut) */
+static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -9048,8 +8973,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -9075,7 +8999,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     { double acc = b[23]; acc -= off[26] * y[1]; acc -= off[27] * y[3]; acc -= off[28] * y[5]; y[14] = acc; }
     y[14] *= 1.0 / A[16];
 }
-static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[29] * y[3]; acc -= off[30] * y[4]; acc -= off[31] * y[5]; y[15] = acc; }
     { double acc = b[9]; acc -= off[32] * y[3]; acc -= off[33] * y[4]; acc -= off[34] * y[5]; y[16] = acc; }
     { double acc = b[34]; acc -= off[35] * y[9]; y[17] = acc; }
@@ -9089,19 +9013,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[25] = b[81];
     y[26] = b[82];
     y[27] = b[83];
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 15 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 15 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 15 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 15 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]], g9 = y[15 + perm[24]], g10 = y[15 + perm[25]], g11 = y[15 + perm[26]], g12 = y[15 + perm[27]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; y[24] = g9; y[25] = g10; y[26] = g11; y[27] = g12; }
     y[16] -= A[18] * y[15];
     y[17] -= A[19] * y[15];
     y[18] -= A[20] * y[15];
@@ -9271,8 +9183,6 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[16] *= 1.0 / A[31];
     y[15] -= A[30] * y[16];
     y[15] *= 1.0 / A[17];
-}
-static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[21]; acc -= off[37] * y[6]; acc -= off[38] * y[15]; acc -= off[39] * y[16]; y[28] = acc; }
     y[28] *= 1.0 / A[186];
     { double acc = b[20]; acc -= off[40] * y[10]; acc -= off[41] * y[15]; acc -= off[42] * y[20]; y[29] = acc; }
@@ -9287,6 +9197,8 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[33] *= 1.0 / A[191];
     { double acc = b[35]; acc -= off[55] * y[10]; acc -= off[56] * y[15]; acc -= off[57] * y[20]; y[34] = acc; }
     y[34] *= 1.0 / A[192];
+}
+static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[39]; acc -= off[58] * y[9]; acc -= off[59] * y[16]; acc -= off[60] * y[20]; y[35] = acc; }
     y[35] *= 1.0 / A[193];
     { double acc = b[40]; acc -= off[61] * y[10]; acc -= off[62] * y[15]; acc -= off[63] * y[20]; y[36] = acc; }
@@ -9315,12 +9227,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     { double acc = b[16]; acc -= off[94] * y[7]; acc -= off[95] * y[11]; acc -= off[96] * y[12]; acc -= off[97] * y[28]; acc -= off[98] * y[29]; acc -= off[99] * y[30]; y[49] = acc; }
     { double acc = b[17]; acc -= off[100] * y[7]; acc -= off[101] * y[11]; acc -= off[102] * y[12]; acc -= off[103] * y[28]; acc -= off[104] * y[29]; acc -= off[105] * y[30]; y[50] = acc; }
     y[51] = b[18];
-    { int p = 46 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 46 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
-    { int p = 46 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 46 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 46 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 46 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
+    { double g0 = y[46 + perm[46]], g1 = y[46 + perm[47]], g2 = y[46 + perm[48]], g3 = y[46 + perm[49]], g4 = y[46 + perm[50]], g5 = y[46 + perm[51]]; y[46] = g0; y[47] = g1; y[48] = g2; y[49] = g3; y[50] = g4; y[51] = g5; }
     y[47] -= A[205] * y[46];
     y[48] -= A[206] * y[46];
     y[49] -= A[207] * y[46];
@@ -9357,20 +9264,13 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[47] *= 1.0 / A[211];
     y[46] -= A[210] * y[47];
     y[46] *= 1.0 / A[204];
-}
-static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[25]; acc -= off[106] * y[3]; acc -= off[107] * y[4]; acc -= off[108] * y[5]; y[52] = acc; }
     y[53] = b[26];
     y[54] = b[27];
     { double acc = b[28]; acc -= off[109] * y[8]; acc -= off[110] * y[13]; acc -= off[111] * y[14]; acc -= off[112] * y[31]; acc -= off[113] * y[32]; acc -= off[114] * y[33]; y[55] = acc; }
     { double acc = b[29]; acc -= off[115] * y[8]; acc -= off[116] * y[13]; acc -= off[117] * y[14]; acc -= off[118] * y[31]; acc -= off[119] * y[32]; acc -= off[120] * y[33]; y[56] = acc; }
     y[57] = b[30];
-    { int p = 52 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 52 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
-    { int p = 52 + piv[54]; double t = y[54]; y[54] = y[p]; y[p] = t; }
-    { int p = 52 + piv[55]; double t = y[55]; y[55] = y[p]; y[p] = t; }
-    { int p = 52 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 52 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
+    { double g0 = y[52 + perm[52]], g1 = y[52 + perm[53]], g2 = y[52 + perm[54]], g3 = y[52 + perm[55]], g4 = y[52 + perm[56]], g5 = y[52 + perm[57]]; y[52] = g0; y[53] = g1; y[54] = g2; y[55] = g3; y[56] = g4; y[57] = g5; }
     y[53] -= A[241] * y[52];
     y[54] -= A[242] * y[52];
     y[55] -= A[243] * y[52];
@@ -9415,18 +9315,15 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[60] *= 1.0 / A[278];
     { double acc = b[69]; acc -= off[130] * y[19]; acc -= off[131] * y[24]; acc -= off[132] * y[34]; y[61] = acc; }
     y[61] *= 1.0 / A[279];
+}
+static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[42]; acc -= off[133] * y[15]; acc -= off[134] * y[16]; acc -= off[135] * y[20]; y[62] = acc; }
     y[63] = b[43];
     y[64] = b[44];
     { double acc = b[45]; acc -= off[136] * y[35]; acc -= off[137] * y[36]; acc -= off[138] * y[37]; acc -= off[139] * y[38]; acc -= off[140] * y[39]; acc -= off[141] * y[58]; y[65] = acc; }
     { double acc = b[46]; acc -= off[142] * y[35]; acc -= off[143] * y[36]; acc -= off[144] * y[37]; acc -= off[145] * y[38]; acc -= off[146] * y[39]; acc -= off[147] * y[58]; y[66] = acc; }
     y[67] = b[47];
-    { int p = 62 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 62 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 62 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 62 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 62 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 62 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
+    { double g0 = y[62 + perm[62]], g1 = y[62 + perm[63]], g2 = y[62 + perm[64]], g3 = y[62 + perm[65]], g4 = y[62 + perm[66]], g5 = y[62 + perm[67]]; y[62] = g0; y[63] = g1; y[64] = g2; y[65] = g3; y[66] = g4; y[67] = g5; }
     y[63] -= A[281] * y[62];
     y[64] -= A[282] * y[62];
     y[65] -= A[283] * y[62];
@@ -9465,20 +9362,13 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[62] *= 1.0 / A[280];
     { double acc = b[65]; acc -= off[148] * y[25]; acc -= off[149] * y[27]; acc -= off[150] * y[59]; y[68] = acc; }
     y[68] *= 1.0 / A[316];
-}
-static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[59]; acc -= off[151] * y[19]; acc -= off[152] * y[23]; acc -= off[153] * y[24]; y[69] = acc; }
     { double acc = b[60]; acc -= off[154] * y[19]; acc -= off[155] * y[23]; acc -= off[156] * y[24]; y[70] = acc; }
     { double acc = b[61]; acc -= off[157] * y[40]; acc -= off[158] * y[43]; y[71] = acc; }
     { double acc = b[62]; acc -= off[159] * y[60]; acc -= off[160] * y[68]; y[72] = acc; }
     { double acc = b[63]; acc -= off[161] * y[41]; acc -= off[162] * y[42]; y[73] = acc; }
     { double acc = b[67]; acc -= off[163] * y[25]; acc -= off[164] * y[26]; acc -= off[165] * y[27]; y[74] = acc; }
-    { int p = 69 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 69 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 69 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
-    { int p = 69 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 69 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 69 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
+    { double g0 = y[69 + perm[69]], g1 = y[69 + perm[70]], g2 = y[69 + perm[71]], g3 = y[69 + perm[72]], g4 = y[69 + perm[73]], g5 = y[69 + perm[74]]; y[69] = g0; y[70] = g1; y[71] = g2; y[72] = g3; y[73] = g4; y[74] = g5; }
     y[70] -= A[318] * y[69];
     y[71] -= A[319] * y[69];
     y[72] -= A[320] * y[69];
@@ -9527,12 +9417,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     { double acc = b[74]; acc -= off[178] * y[44]; acc -= off[179] * y[45]; acc -= off[180] * y[61]; acc -= off[181] * y[75]; acc -= off[182] * y[76]; acc -= off[183] * y[77]; y[81] = acc; }
     { double acc = b[75]; acc -= off[184] * y[44]; acc -= off[185] * y[45]; acc -= off[186] * y[61]; acc -= off[187] * y[75]; acc -= off[188] * y[76]; acc -= off[189] * y[77]; y[82] = acc; }
     y[83] = b[76];
-    { int p = 78 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 78 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 78 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
-    { int p = 78 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 78 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 78 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
+    { double g0 = y[78 + perm[78]], g1 = y[78 + perm[79]], g2 = y[78 + perm[80]], g3 = y[78 + perm[81]], g4 = y[78 + perm[82]], g5 = y[78 + perm[83]]; y[78] = g0; y[79] = g1; y[80] = g2; y[81] = g3; y[82] = g4; y[83] = g5; }
     y[79] -= A[357] * y[78];
     y[80] -= A[358] * y[78];
     y[81] -= A[359] * y[78];
@@ -9572,33 +9457,57 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_level_cut_0(A, off, piv, b, y);
-    solve_level_cut_1(A, off, piv, b, y);
-    solve_level_cut_2(A, off, piv, b, y);
-    solve_level_cut_3(A, off, piv, b, y);
-    solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+static void solve_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_level_cut_0(A, off, perm, b, y);
+    solve_level_cut_1(A, off, perm, b, y);
+    solve_level_cut_2(A, off, perm, b, y);
+    solve_level_cut_3(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[2] = y[5];
+    x[11] = y[6]; x[17] = y[7]; x[29] = y[8]; x[9] = y[9]; x[10] = y[10]; x[15] = y[11];
+    x[16] = y[12]; x[27] = y[13]; x[28] = y[14]; x[6] = y[15]; x[7] = y[16]; x[39] = y[17];
+    x[41] = y[18]; x[36] = y[19]; x[8] = y[20]; x[81] = y[21]; x[83] = y[22]; x[37] = y[23];
+    x[38] = y[24]; x[80] = y[25]; x[79] = y[26]; x[78] = y[27]; x[23] = y[28]; x[22] = y[29];
+    x[21] = y[30]; x[35] = y[31]; x[34] = y[32]; x[33] = y[33]; x[40] = y[34]; x[45] = y[35];
+    x[46] = y[36]; x[47] = y[37]; x[53] = y[38]; x[51] = y[39]; x[69] = y[40]; x[71] = y[41];
+    x[77] = y[42]; x[75] = y[43]; x[57] = y[44]; x[59] = y[45]; x[12] = y[46]; x[13] = y[47];
+    x[14] = y[48]; x[18] = y[49]; x[19] = y[50]; x[20] = y[51]; x[24] = y[52]; x[25] = y[53];
+    x[26] = y[54]; x[30] = y[55]; x[31] = y[56]; x[32] = y[57]; x[52] = y[58]; x[82] = y[59];
+    x[70] = y[60]; x[58] = y[61]; x[42] = y[62]; x[43] = y[63]; x[44] = y[64]; x[48] = y[65];
+    x[49] = y[66]; x[50] = y[67]; x[76] = y[68]; x[66] = y[69]; x[67] = y[70]; x[68] = y[71];
+    x[72] = y[72]; x[73] = y[73]; x[74] = y[74]; x[65] = y[75]; x[64] = y[76]; x[63] = y[77];
+    x[54] = y[78]; x[55] = y[79]; x[56] = y[80]; x[60] = y[81]; x[61] = y[82]; x[62] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_level_cut[] = {0, 15, 28, 52, 69};
+static const int solve_rows_level_cut[] = {0, 15, 35, 62};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
-    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
-    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
-    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
-    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+    if (first <= 0) solve_level_cut_0(A, off, perm, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, perm, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, perm, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[2] = y[5];
+    x[11] = y[6]; x[17] = y[7]; x[29] = y[8]; x[9] = y[9]; x[10] = y[10]; x[15] = y[11];
+    x[16] = y[12]; x[27] = y[13]; x[28] = y[14]; x[6] = y[15]; x[7] = y[16]; x[39] = y[17];
+    x[41] = y[18]; x[36] = y[19]; x[8] = y[20]; x[81] = y[21]; x[83] = y[22]; x[37] = y[23];
+    x[38] = y[24]; x[80] = y[25]; x[79] = y[26]; x[78] = y[27]; x[23] = y[28]; x[22] = y[29];
+    x[21] = y[30]; x[35] = y[31]; x[34] = y[32]; x[33] = y[33]; x[40] = y[34]; x[45] = y[35];
+    x[46] = y[36]; x[47] = y[37]; x[53] = y[38]; x[51] = y[39]; x[69] = y[40]; x[71] = y[41];
+    x[77] = y[42]; x[75] = y[43]; x[57] = y[44]; x[59] = y[45]; x[12] = y[46]; x[13] = y[47];
+    x[14] = y[48]; x[18] = y[49]; x[19] = y[50]; x[20] = y[51]; x[24] = y[52]; x[25] = y[53];
+    x[26] = y[54]; x[30] = y[55]; x[31] = y[56]; x[32] = y[57]; x[52] = y[58]; x[82] = y[59];
+    x[70] = y[60]; x[58] = y[61]; x[42] = y[62]; x[43] = y[63]; x[44] = y[64]; x[48] = y[65];
+    x[49] = y[66]; x[50] = y[67]; x[76] = y[68]; x[66] = y[69]; x[67] = y[70]; x[68] = y[71];
+    x[72] = y[72]; x[73] = y[73]; x[74] = y[74]; x[65] = y[75]; x[64] = y[76]; x[63] = y[77];
+    x[54] = y[78]; x[55] = y[79]; x[56] = y[80]; x[60] = y[81]; x[61] = y[82]; x[62] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
-static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[78]; w[78] = acc * (1.0 / A[356]); }
     { double acc = w[79]; acc -= A[362] * w[78]; w[79] = acc * (1.0 / A[363]); }
     { double acc = w[80]; acc -= A[368] * w[78]; acc -= A[369] * w[79]; w[80] = acc * (1.0 / A[370]); }
@@ -9610,12 +9519,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[80]; acc -= A[371] * w[81]; acc -= A[372] * w[82]; acc -= A[373] * w[83]; w[80] = acc; }
     { double acc = w[79]; acc -= A[364] * w[80]; acc -= A[365] * w[81]; acc -= A[366] * w[82]; acc -= A[367] * w[83]; w[79] = acc; }
     { double acc = w[78]; acc -= A[357] * w[79]; acc -= A[358] * w[80]; acc -= A[359] * w[81]; acc -= A[360] * w[82]; acc -= A[361] * w[83]; w[78] = acc; }
-    { int p = 78 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 78 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 78 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
-    { int p = 78 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { double g0 = w[78], g1 = w[79], g2 = w[80], g3 = w[81], g4 = w[82], g5 = w[83]; w[78 + perm[78]] = g0; w[78 + perm[79]] = g1; w[78 + perm[80]] = g2; w[78 + perm[81]] = g3; w[78 + perm[82]] = g4; w[78 + perm[83]] = g5; }
     w[19] -= off[175] * w[78];
     w[23] -= off[176] * w[78];
     w[24] -= off[177] * w[78];
@@ -9654,12 +9558,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[71]; acc -= A[332] * w[72]; acc -= A[333] * w[73]; acc -= A[334] * w[74]; w[71] = acc; }
     { double acc = w[70]; acc -= A[325] * w[71]; acc -= A[326] * w[72]; acc -= A[327] * w[73]; acc -= A[328] * w[74]; w[70] = acc; }
     { double acc = w[69]; acc -= A[318] * w[70]; acc -= A[319] * w[71]; acc -= A[320] * w[72]; acc -= A[321] * w[73]; acc -= A[322] * w[74]; w[69] = acc; }
-    { int p = 69 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 69 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 69 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
-    { int p = 69 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 69 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 69 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { double g0 = w[69], g1 = w[70], g2 = w[71], g3 = w[72], g4 = w[73], g5 = w[74]; w[69 + perm[69]] = g0; w[69 + perm[70]] = g1; w[69 + perm[71]] = g2; w[69 + perm[72]] = g3; w[69 + perm[73]] = g4; w[69 + perm[74]] = g5; }
     w[19] -= off[151] * w[69];
     w[23] -= off[152] * w[69];
     w[24] -= off[153] * w[69];
@@ -9679,8 +9578,6 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     w[25] -= off[148] * w[68];
     w[27] -= off[149] * w[68];
     w[59] -= off[150] * w[68];
-}
-static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[62]; w[62] = acc * (1.0 / A[280]); }
     { double acc = w[63]; acc -= A[286] * w[62]; w[63] = acc * (1.0 / A[287]); }
     { double acc = w[64]; acc -= A[292] * w[62]; acc -= A[293] * w[63]; w[64] = acc * (1.0 / A[294]); }
@@ -9692,12 +9589,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[64]; acc -= A[295] * w[65]; acc -= A[296] * w[66]; acc -= A[297] * w[67]; w[64] = acc; }
     { double acc = w[63]; acc -= A[288] * w[64]; acc -= A[289] * w[65]; acc -= A[290] * w[66]; acc -= A[291] * w[67]; w[63] = acc; }
     { double acc = w[62]; acc -= A[281] * w[63]; acc -= A[282] * w[64]; acc -= A[283] * w[65]; acc -= A[284] * w[66]; acc -= A[285] * w[67]; w[62] = acc; }
-    { int p = 62 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 62 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 62 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { double g0 = w[62], g1 = w[63], g2 = w[64], g3 = w[65], g4 = w[66], g5 = w[67]; w[62 + perm[62]] = g0; w[62 + perm[63]] = g1; w[62 + perm[64]] = g2; w[62 + perm[65]] = g3; w[62 + perm[66]] = g4; w[62 + perm[67]] = g5; }
     w[15] -= off[133] * w[62];
     w[16] -= off[134] * w[62];
     w[20] -= off[135] * w[62];
@@ -9717,6 +9609,8 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[19] -= off[130] * w[61];
     w[24] -= off[131] * w[61];
     w[34] -= off[132] * w[61];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[60]; w[60] = acc * (1.0 / A[278]); }
     w[19] -= off[127] * w[60];
     w[24] -= off[128] * w[60];
@@ -9740,12 +9634,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[54]; acc -= A[255] * w[55]; acc -= A[256] * w[56]; acc -= A[257] * w[57]; w[54] = acc; }
     { double acc = w[53]; acc -= A[248] * w[54]; acc -= A[249] * w[55]; acc -= A[250] * w[56]; acc -= A[251] * w[57]; w[53] = acc; }
     { double acc = w[52]; acc -= A[241] * w[53]; acc -= A[242] * w[54]; acc -= A[243] * w[55]; acc -= A[244] * w[56]; acc -= A[245] * w[57]; w[52] = acc; }
-    { int p = 52 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 52 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
-    { int p = 52 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
-    { int p = 52 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
-    { int p = 52 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 52 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
+    { double g0 = w[52], g1 = w[53], g2 = w[54], g3 = w[55], g4 = w[56], g5 = w[57]; w[52 + perm[52]] = g0; w[52 + perm[53]] = g1; w[52 + perm[54]] = g2; w[52 + perm[55]] = g3; w[52 + perm[56]] = g4; w[52 + perm[57]] = g5; }
     w[3] -= off[106] * w[52];
     w[4] -= off[107] * w[52];
     w[5] -= off[108] * w[52];
@@ -9761,8 +9650,6 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[31] -= off[118] * w[56];
     w[32] -= off[119] * w[56];
     w[33] -= off[120] * w[56];
-}
-static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[46]; w[46] = acc * (1.0 / A[204]); }
     { double acc = w[47]; acc -= A[210] * w[46]; w[47] = acc * (1.0 / A[211]); }
     { double acc = w[48]; acc -= A[216] * w[46]; acc -= A[217] * w[47]; w[48] = acc * (1.0 / A[218]); }
@@ -9774,12 +9661,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     { double acc = w[48]; acc -= A[219] * w[49]; acc -= A[220] * w[50]; acc -= A[221] * w[51]; w[48] = acc; }
     { double acc = w[47]; acc -= A[212] * w[48]; acc -= A[213] * w[49]; acc -= A[214] * w[50]; acc -= A[215] * w[51]; w[47] = acc; }
     { double acc = w[46]; acc -= A[205] * w[47]; acc -= A[206] * w[48]; acc -= A[207] * w[49]; acc -= A[208] * w[50]; acc -= A[209] * w[51]; w[46] = acc; }
-    { int p = 46 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 46 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 46 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 46 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
-    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { double g0 = w[46], g1 = w[47], g2 = w[48], g3 = w[49], g4 = w[50], g5 = w[51]; w[46 + perm[46]] = g0; w[46 + perm[47]] = g1; w[46 + perm[48]] = g2; w[46 + perm[49]] = g3; w[46 + perm[50]] = g4; w[46 + perm[51]] = g5; }
     w[3] -= off[91] * w[46];
     w[4] -= off[92] * w[46];
     w[5] -= off[93] * w[46];
@@ -9863,12 +9745,12 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     w[10] -= off[40] * w[29];
     w[15] -= off[41] * w[29];
     w[20] -= off[42] * w[29];
+}
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[28]; w[28] = acc * (1.0 / A[186]); }
     w[6] -= off[37] * w[28];
     w[15] -= off[38] * w[28];
     w[16] -= off[39] * w[28];
-}
-static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
     { double acc = w[16]; acc -= A[30] * w[15]; w[16] = acc * (1.0 / A[31]); }
     { double acc = w[17]; acc -= A[43] * w[15]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
@@ -9894,19 +9776,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; w[17] = acc; }
     { double acc = w[16]; acc -= A[32] * w[17]; acc -= A[33] * w[18]; acc -= A[34] * w[19]; acc -= A[35] * w[20]; acc -= A[36] * w[21]; acc -= A[37] * w[22]; acc -= A[38] * w[23]; acc -= A[39] * w[24]; acc -= A[40] * w[25]; acc -= A[41] * w[26]; acc -= A[42] * w[27]; w[16] = acc; }
     { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; acc -= A[29] * w[27]; w[15] = acc; }
-    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23], g9 = w[24], g10 = w[25], g11 = w[26], g12 = w[27]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; w[15 + perm[24]] = g9; w[15 + perm[25]] = g10; w[15 + perm[26]] = g11; w[15 + perm[27]] = g12; }
     w[3] -= off[29] * w[15];
     w[4] -= off[30] * w[15];
     w[5] -= off[31] * w[15];
@@ -9915,8 +9785,6 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     w[5] -= off[34] * w[16];
     w[9] -= off[35] * w[17];
     w[6] -= off[36] * w[18];
-}
-static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
     w[1] -= off[26] * w[14];
     w[3] -= off[27] * w[14];
@@ -9929,6 +9797,8 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     w[1] -= off[20] * w[12];
     w[3] -= off[21] * w[12];
     w[5] -= off[22] * w[12];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[11]; w[11] = acc * (1.0 / A[13]); }
     w[0] -= off[17] * w[11];
     w[4] -= off[18] * w[11];
@@ -9959,21 +9829,19 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_level_cut(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
-    solve_transposed_level_cut_0(A, off, piv, w);
-    solve_transposed_level_cut_1(A, off, piv, w);
-    solve_transposed_level_cut_2(A, off, piv, w);
-    solve_transposed_level_cut_3(A, off, piv, w);
-    solve_transposed_level_cut_4(A, off, piv, w);
+    solve_transposed_level_cut_0(A, off, perm, w);
+    solve_transposed_level_cut_1(A, off, perm, w);
+    solve_transposed_level_cut_2(A, off, perm, w);
+    solve_transposed_level_cut_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -10055,7 +9923,7 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_toggle[] = {0, 1, 3, 5};
+static const int input_pieces_bucket_toggle[] = {0, 1, 3, 4};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10094,7 +9962,7 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_stroke[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_stroke[] = {0, 1, 3, 5};
+static const int input_pieces_bucket_stroke[] = {0, 1, 3, 4};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10133,7 +10001,7 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_near_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_near_toggle[] = {0, 1, 3, 5};
+static const int input_pieces_bucket_near_toggle[] = {0, 1, 3, 4};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10172,7 +10040,7 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_fast[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_fast[] = {0, 1, 3, 5};
+static const int input_pieces_digging_fast[] = {0, 1, 3, 4};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10211,7 +10079,7 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_paced[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_paced[] = {0, 1, 3, 5};
+static const int input_pieces_digging_paced[] = {0, 1, 3, 4};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10250,7 +10118,7 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_oscillation[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_oscillation[] = {0, 1, 3, 5};
+static const int input_pieces_oscillation[] = {0, 1, 3, 4};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */

@@ -8041,9 +8041,10 @@ static const int diag_slot_digging[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 19,
 static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
 static const int off_col_digging[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_digging) */
-static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_digging) */
+static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -8054,10 +8055,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[4] = b[4];
     y[5] = b[80];
     y[6] = b[94];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]], g2 = y[3 + perm[5]], g3 = y[3 + perm[6]]; y[3] = g0; y[4] = g1; y[5] = g2; y[6] = g3; }
     y[4] -= A[4] * y[3];
     y[5] -= A[5] * y[3];
     y[6] -= A[6] * y[3];
@@ -8093,7 +8091,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     { double acc = b[24]; acc -= off[40] * y[2]; acc -= off[41] * y[3]; acc -= off[42] * y[4]; acc -= off[43] * y[5]; acc -= off[44] * y[6]; y[15] = acc; }
     y[15] *= 1.0 / A[27];
 }
-static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[45] * y[3]; acc -= off[46] * y[4]; acc -= off[47] * y[5]; acc -= off[48] * y[6]; y[16] = acc; }
     { double acc = b[9]; acc -= off[49] * y[3]; acc -= off[50] * y[4]; acc -= off[51] * y[5]; acc -= off[52] * y[6]; y[17] = acc; }
     { double acc = b[13]; acc -= off[53] * y[3]; acc -= off[54] * y[4]; acc -= off[55] * y[5]; acc -= off[56] * y[6]; y[18] = acc; }
@@ -8105,17 +8103,7 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[24] = b[81];
     y[25] = b[82];
     { double acc = b[95]; acc -= off[66] * y[10]; acc -= off[67] * y[11]; acc -= off[68] * y[12]; y[26] = acc; }
-    { int p = 16 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 16 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 16 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 16 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 16 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 16 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 16 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 16 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 16 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 16 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 16 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
+    { double g0 = y[16 + perm[16]], g1 = y[16 + perm[17]], g2 = y[16 + perm[18]], g3 = y[16 + perm[19]], g4 = y[16 + perm[20]], g5 = y[16 + perm[21]], g6 = y[16 + perm[22]], g7 = y[16 + perm[23]], g8 = y[16 + perm[24]], g9 = y[16 + perm[25]], g10 = y[16 + perm[26]]; y[16] = g0; y[17] = g1; y[18] = g2; y[19] = g3; y[20] = g4; y[21] = g5; y[22] = g6; y[23] = g7; y[24] = g8; y[25] = g9; y[26] = g10; }
     y[17] -= A[29] * y[16];
     y[18] -= A[30] * y[16];
     y[19] -= A[31] * y[16];
@@ -8237,16 +8225,11 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[17] *= 1.0 / A[40];
     y[16] -= A[39] * y[17];
     y[16] *= 1.0 / A[28];
-}
-static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[14]; acc -= off[69] * y[18]; acc -= off[70] * y[19]; acc -= off[71] * y[25]; acc -= off[72] * y[26]; y[27] = acc; }
     { double acc = b[15]; acc -= off[73] * y[18]; acc -= off[74] * y[19]; acc -= off[75] * y[25]; acc -= off[76] * y[26]; y[28] = acc; }
     { double acc = b[18]; acc -= off[77] * y[18]; acc -= off[78] * y[19]; acc -= off[79] * y[25]; acc -= off[80] * y[26]; y[29] = acc; }
     y[30] = b[83];
-    { int p = 27 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
-    { int p = 27 + piv[28]; double t = y[28]; y[28] = y[p]; y[p] = t; }
-    { int p = 27 + piv[29]; double t = y[29]; y[29] = y[p]; y[p] = t; }
-    { int p = 27 + piv[30]; double t = y[30]; y[30] = y[p]; y[p] = t; }
+    { double g0 = y[27 + perm[27]], g1 = y[27 + perm[28]], g2 = y[27 + perm[29]], g3 = y[27 + perm[30]]; y[27] = g0; y[28] = g1; y[29] = g2; y[30] = g3; }
     y[28] -= A[150] * y[27];
     y[29] -= A[151] * y[27];
     y[30] -= A[152] * y[27];
@@ -8271,6 +8254,8 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[33] *= 1.0 / A[167];
     { double acc = b[34]; acc -= off[96] * y[7]; acc -= off[97] * y[16]; acc -= off[98] * y[17]; acc -= off[99] * y[21]; acc -= off[100] * y[24]; y[34] = acc; }
     y[34] *= 1.0 / A[168];
+}
+static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[35]; acc -= off[101] * y[8]; acc -= off[102] * y[16]; acc -= off[103] * y[17]; acc -= off[104] * y[21]; acc -= off[105] * y[24]; y[35] = acc; }
     y[35] *= 1.0 / A[169];
     { double acc = b[36]; acc -= off[106] * y[9]; acc -= off[107] * y[16]; acc -= off[108] * y[17]; acc -= off[109] * y[21]; acc -= off[110] * y[24]; y[36] = acc; }
@@ -8285,10 +8270,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[28]; acc -= off[130] * y[13]; acc -= off[131] * y[14]; acc -= off[132] * y[15]; acc -= off[133] * y[31]; acc -= off[134] * y[32]; acc -= off[135] * y[33]; y[41] = acc; }
     { double acc = b[29]; acc -= off[136] * y[13]; acc -= off[137] * y[14]; acc -= off[138] * y[15]; acc -= off[139] * y[31]; acc -= off[140] * y[32]; acc -= off[141] * y[33]; y[42] = acc; }
     y[43] = b[84];
-    { int p = 40 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 40 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
-    { int p = 40 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 40 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
+    { double g0 = y[40 + perm[40]], g1 = y[40 + perm[41]], g2 = y[40 + perm[42]], g3 = y[40 + perm[43]]; y[40] = g0; y[41] = g1; y[42] = g2; y[43] = g3; }
     y[41] -= A[175] * y[40];
     y[42] -= A[176] * y[40];
     y[43] -= A[177] * y[40];
@@ -8306,7 +8288,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[40] -= A[178] * y[41];
     y[40] *= 1.0 / A[174];
 }
-static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[37]; acc -= off[142] * y[16]; acc -= off[143] * y[17]; acc -= off[144] * y[21]; acc -= off[145] * y[24]; y[44] = acc; }
     { double acc = b[38]; acc -= off[146] * y[16]; acc -= off[147] * y[17]; acc -= off[148] * y[21]; acc -= off[149] * y[24]; y[45] = acc; }
     { double acc = b[42]; acc -= off[150] * y[16]; acc -= off[151] * y[17]; acc -= off[152] * y[21]; acc -= off[153] * y[24]; y[46] = acc; }
@@ -8318,17 +8300,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[52] = b[86];
     y[53] = b[87];
     { double acc = b[96]; acc -= off[163] * y[37]; acc -= off[164] * y[38]; acc -= off[165] * y[39]; y[54] = acc; }
-    { int p = 44 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 44 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 44 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 44 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
-    { int p = 44 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 44 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 44 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 44 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 44 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 44 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
-    { int p = 44 + piv[54]; double t = y[54]; y[54] = y[p]; y[p] = t; }
+    { double g0 = y[44 + perm[44]], g1 = y[44 + perm[45]], g2 = y[44 + perm[46]], g3 = y[44 + perm[47]], g4 = y[44 + perm[48]], g5 = y[44 + perm[49]], g6 = y[44 + perm[50]], g7 = y[44 + perm[51]], g8 = y[44 + perm[52]], g9 = y[44 + perm[53]], g10 = y[44 + perm[54]]; y[44] = g0; y[45] = g1; y[46] = g2; y[47] = g3; y[48] = g4; y[49] = g5; y[50] = g6; y[51] = g7; y[52] = g8; y[53] = g9; y[54] = g10; }
     y[45] -= A[191] * y[44];
     y[46] -= A[192] * y[44];
     y[47] -= A[193] * y[44];
@@ -8450,16 +8422,11 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[45] *= 1.0 / A[202];
     y[44] -= A[201] * y[45];
     y[44] *= 1.0 / A[190];
-}
-static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[26]; acc -= off[166] * y[40]; acc -= off[167] * y[41]; acc -= off[168] * y[42]; acc -= off[169] * y[43]; y[55] = acc; }
     { double acc = b[27]; acc -= off[170] * y[40]; acc -= off[171] * y[41]; acc -= off[172] * y[42]; acc -= off[173] * y[43]; y[56] = acc; }
     { double acc = b[30]; acc -= off[174] * y[40]; acc -= off[175] * y[41]; acc -= off[176] * y[42]; acc -= off[177] * y[43]; y[57] = acc; }
     y[58] = b[85];
-    { int p = 55 + piv[55]; double t = y[55]; y[55] = y[p]; y[p] = t; }
-    { int p = 55 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 55 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
-    { int p = 55 + piv[58]; double t = y[58]; y[58] = y[p]; y[p] = t; }
+    { double g0 = y[55 + perm[55]], g1 = y[55 + perm[56]], g2 = y[55 + perm[57]], g3 = y[55 + perm[58]]; y[55] = g0; y[56] = g1; y[57] = g2; y[58] = g3; }
     y[56] -= A[312] * y[55];
     y[57] -= A[313] * y[55];
     y[58] -= A[314] * y[55];
@@ -8476,14 +8443,13 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     y[56] *= 1.0 / A[316];
     y[55] -= A[315] * y[56];
     y[55] *= 1.0 / A[311];
+}
+static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[43]; acc -= off[178] * y[46]; acc -= off[179] * y[47]; acc -= off[180] * y[53]; acc -= off[181] * y[54]; y[59] = acc; }
     { double acc = b[44]; acc -= off[182] * y[46]; acc -= off[183] * y[47]; acc -= off[184] * y[53]; acc -= off[185] * y[54]; y[60] = acc; }
     { double acc = b[47]; acc -= off[186] * y[46]; acc -= off[187] * y[47]; acc -= off[188] * y[53]; acc -= off[189] * y[54]; y[61] = acc; }
     y[62] = b[88];
-    { int p = 59 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 59 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
-    { int p = 59 + piv[61]; double t = y[61]; y[61] = y[p]; y[p] = t; }
-    { int p = 59 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
+    { double g0 = y[59 + perm[59]], g1 = y[59 + perm[60]], g2 = y[59 + perm[61]], g3 = y[59 + perm[62]]; y[59] = g0; y[60] = g1; y[61] = g2; y[62] = g3; }
     y[60] -= A[328] * y[59];
     y[61] -= A[329] * y[59];
     y[62] -= A[330] * y[59];
@@ -8519,7 +8485,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     { double acc = b[56]; acc -= off[230] * y[34]; acc -= off[231] * y[44]; acc -= off[232] * y[45]; acc -= off[233] * y[49]; acc -= off[234] * y[52]; y[71] = acc; }
     y[71] *= 1.0 / A[351];
 }
-static void solve_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_5(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[59]; acc -= off[235] * y[44]; acc -= off[236] * y[45]; acc -= off[237] * y[49]; acc -= off[238] * y[52]; y[72] = acc; }
     { double acc = b[60]; acc -= off[239] * y[44]; acc -= off[240] * y[45]; acc -= off[241] * y[49]; acc -= off[242] * y[52]; y[73] = acc; }
     { double acc = b[71]; acc -= off[243] * y[44]; acc -= off[244] * y[45]; acc -= off[245] * y[49]; acc -= off[246] * y[52]; y[74] = acc; }
@@ -8531,17 +8497,7 @@ static void solve_digging_5(const double *restrict A, const double *restrict off
     y[80] = b[89];
     y[81] = b[91];
     { double acc = b[97]; acc -= off[256] * y[68]; acc -= off[257] * y[69]; acc -= off[258] * y[70]; y[82] = acc; }
-    { int p = 72 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 72 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 72 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
-    { int p = 72 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 72 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 72 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 72 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 72 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 72 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
-    { int p = 72 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 72 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
+    { double g0 = y[72 + perm[72]], g1 = y[72 + perm[73]], g2 = y[72 + perm[74]], g3 = y[72 + perm[75]], g4 = y[72 + perm[76]], g5 = y[72 + perm[77]], g6 = y[72 + perm[78]], g7 = y[72 + perm[79]], g8 = y[72 + perm[80]], g9 = y[72 + perm[81]], g10 = y[72 + perm[82]]; y[72] = g0; y[73] = g1; y[74] = g2; y[75] = g3; y[76] = g4; y[77] = g5; y[78] = g6; y[79] = g7; y[80] = g8; y[81] = g9; y[82] = g10; }
     y[73] -= A[353] * y[72];
     y[74] -= A[354] * y[72];
     y[75] -= A[355] * y[72];
@@ -8664,7 +8620,7 @@ static void solve_digging_5(const double *restrict A, const double *restrict off
     y[72] -= A[363] * y[73];
     y[72] *= 1.0 / A[352];
 }
-static void solve_digging_6(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_6(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[54]; acc -= off[259] * y[44]; acc -= off[260] * y[45]; acc -= off[261] * y[49]; acc -= off[262] * y[52]; y[83] = acc; }
     { double acc = b[55]; acc -= off[263] * y[44]; acc -= off[264] * y[45]; acc -= off[265] * y[49]; acc -= off[266] * y[52]; y[84] = acc; }
     { double acc = b[61]; acc -= off[267] * y[71]; acc -= off[268] * y[72]; acc -= off[269] * y[73]; acc -= off[270] * y[77]; acc -= off[271] * y[81]; y[85] = acc; }
@@ -8676,17 +8632,7 @@ static void solve_digging_6(const double *restrict A, const double *restrict off
     y[91] = b[67];
     y[92] = b[92];
     y[93] = b[93];
-    { int p = 83 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
-    { int p = 83 + piv[84]; double t = y[84]; y[84] = y[p]; y[p] = t; }
-    { int p = 83 + piv[85]; double t = y[85]; y[85] = y[p]; y[p] = t; }
-    { int p = 83 + piv[86]; double t = y[86]; y[86] = y[p]; y[p] = t; }
-    { int p = 83 + piv[87]; double t = y[87]; y[87] = y[p]; y[p] = t; }
-    { int p = 83 + piv[88]; double t = y[88]; y[88] = y[p]; y[p] = t; }
-    { int p = 83 + piv[89]; double t = y[89]; y[89] = y[p]; y[p] = t; }
-    { int p = 83 + piv[90]; double t = y[90]; y[90] = y[p]; y[p] = t; }
-    { int p = 83 + piv[91]; double t = y[91]; y[91] = y[p]; y[p] = t; }
-    { int p = 83 + piv[92]; double t = y[92]; y[92] = y[p]; y[p] = t; }
-    { int p = 83 + piv[93]; double t = y[93]; y[93] = y[p]; y[p] = t; }
+    { double g0 = y[83 + perm[83]], g1 = y[83 + perm[84]], g2 = y[83 + perm[85]], g3 = y[83 + perm[86]], g4 = y[83 + perm[87]], g5 = y[83 + perm[88]], g6 = y[83 + perm[89]], g7 = y[83 + perm[90]], g8 = y[83 + perm[91]], g9 = y[83 + perm[92]], g10 = y[83 + perm[93]]; y[83] = g0; y[84] = g1; y[85] = g2; y[86] = g3; y[87] = g4; y[88] = g5; y[89] = g6; y[90] = g7; y[91] = g8; y[92] = g9; y[93] = g10; }
     y[84] -= A[474] * y[83];
     y[85] -= A[475] * y[83];
     y[86] -= A[476] * y[83];
@@ -8808,16 +8754,11 @@ static void solve_digging_6(const double *restrict A, const double *restrict off
     y[84] *= 1.0 / A[485];
     y[83] -= A[484] * y[84];
     y[83] *= 1.0 / A[473];
-}
-static void solve_digging_7(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[72]; acc -= off[285] * y[74]; acc -= off[286] * y[75]; acc -= off[287] * y[80]; acc -= off[288] * y[82]; y[94] = acc; }
     { double acc = b[73]; acc -= off[289] * y[74]; acc -= off[290] * y[75]; acc -= off[291] * y[80]; acc -= off[292] * y[82]; y[95] = acc; }
     { double acc = b[76]; acc -= off[293] * y[74]; acc -= off[294] * y[75]; acc -= off[295] * y[80]; acc -= off[296] * y[82]; y[96] = acc; }
     y[97] = b[90];
-    { int p = 94 + piv[94]; double t = y[94]; y[94] = y[p]; y[p] = t; }
-    { int p = 94 + piv[95]; double t = y[95]; y[95] = y[p]; y[p] = t; }
-    { int p = 94 + piv[96]; double t = y[96]; y[96] = y[p]; y[p] = t; }
-    { int p = 94 + piv[97]; double t = y[97]; y[97] = y[p]; y[p] = t; }
+    { double g0 = y[94 + perm[94]], g1 = y[94 + perm[95]], g2 = y[94 + perm[96]], g3 = y[94 + perm[97]]; y[94] = g0; y[95] = g1; y[96] = g2; y[97] = g3; }
     y[95] -= A[595] * y[94];
     y[96] -= A[596] * y[94];
     y[97] -= A[597] * y[94];
@@ -8837,39 +8778,69 @@ static void solve_digging_7(const double *restrict A, const double *restrict off
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_digging_0(A, off, piv, b, y);
-    solve_digging_1(A, off, piv, b, y);
-    solve_digging_2(A, off, piv, b, y);
-    solve_digging_3(A, off, piv, b, y);
-    solve_digging_4(A, off, piv, b, y);
-    solve_digging_5(A, off, piv, b, y);
-    solve_digging_6(A, off, piv, b, y);
-    solve_digging_7(A, off, piv, b, y);
-    for (int j = 0; j < 98; ++j) x[col_order_digging[j]] = y[j];
+static void solve_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_digging_0(A, off, perm, b, y);
+    solve_digging_1(A, off, perm, b, y);
+    solve_digging_2(A, off, perm, b, y);
+    solve_digging_3(A, off, perm, b, y);
+    solve_digging_4(A, off, perm, b, y);
+    solve_digging_5(A, off, perm, b, y);
+    solve_digging_6(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[8] = y[8]; x[9] = y[9]; x[16] = y[10]; x[15] = y[11];
+    x[14] = y[12]; x[28] = y[13]; x[29] = y[14]; x[30] = y[15]; x[10] = y[16]; x[11] = y[17];
+    x[17] = y[18]; x[20] = y[19]; x[21] = y[20]; x[13] = y[21]; x[22] = y[22]; x[23] = y[23];
+    x[12] = y[24]; x[19] = y[25]; x[18] = y[26]; x[27] = y[27]; x[26] = y[28]; x[24] = y[29];
+    x[25] = y[30]; x[37] = y[31]; x[36] = y[32]; x[35] = y[33]; x[42] = y[34]; x[43] = y[35];
+    x[44] = y[36]; x[51] = y[37]; x[50] = y[38]; x[49] = y[39]; x[31] = y[40]; x[34] = y[41];
+    x[32] = y[42]; x[33] = y[43]; x[45] = y[44]; x[46] = y[45]; x[52] = y[46]; x[55] = y[47];
+    x[56] = y[48]; x[47] = y[49]; x[57] = y[50]; x[58] = y[51]; x[48] = y[52]; x[54] = y[53];
+    x[53] = y[54]; x[41] = y[55]; x[40] = y[56]; x[38] = y[57]; x[39] = y[58]; x[62] = y[59];
+    x[61] = y[60]; x[59] = y[61]; x[60] = y[62]; x[91] = y[63]; x[92] = y[64]; x[93] = y[65];
+    x[79] = y[66]; x[78] = y[67]; x[65] = y[68]; x[64] = y[69]; x[63] = y[70]; x[77] = y[71];
+    x[80] = y[72]; x[81] = y[73]; x[66] = y[74]; x[69] = y[75]; x[70] = y[76]; x[83] = y[77];
+    x[71] = y[78]; x[72] = y[79]; x[68] = y[80]; x[82] = y[81]; x[67] = y[82]; x[94] = y[83];
+    x[95] = y[84]; x[90] = y[85]; x[89] = y[86]; x[86] = y[87]; x[84] = y[88]; x[85] = y[89];
+    x[96] = y[90]; x[87] = y[91]; x[88] = y[92]; x[97] = y[93]; x[76] = y[94]; x[75] = y[95];
+    x[73] = y[96]; x[74] = y[97];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_digging[] = {0, 16, 27, 44, 55, 72, 83, 94};
+static const int solve_rows_digging[] = {0, 16, 35, 44, 59, 72, 83};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_digging_0(A, off, piv, b, y);
-    if (first <= 1) solve_digging_1(A, off, piv, b, y);
-    if (first <= 2) solve_digging_2(A, off, piv, b, y);
-    if (first <= 3) solve_digging_3(A, off, piv, b, y);
-    if (first <= 4) solve_digging_4(A, off, piv, b, y);
-    if (first <= 5) solve_digging_5(A, off, piv, b, y);
-    if (first <= 6) solve_digging_6(A, off, piv, b, y);
-    if (first <= 7) solve_digging_7(A, off, piv, b, y);
-    for (int j = 0; j < 98; ++j) x[col_order_digging[j]] = y[j];
+    if (first <= 0) solve_digging_0(A, off, perm, b, y);
+    if (first <= 1) solve_digging_1(A, off, perm, b, y);
+    if (first <= 2) solve_digging_2(A, off, perm, b, y);
+    if (first <= 3) solve_digging_3(A, off, perm, b, y);
+    if (first <= 4) solve_digging_4(A, off, perm, b, y);
+    if (first <= 5) solve_digging_5(A, off, perm, b, y);
+    if (first <= 6) solve_digging_6(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[8] = y[8]; x[9] = y[9]; x[16] = y[10]; x[15] = y[11];
+    x[14] = y[12]; x[28] = y[13]; x[29] = y[14]; x[30] = y[15]; x[10] = y[16]; x[11] = y[17];
+    x[17] = y[18]; x[20] = y[19]; x[21] = y[20]; x[13] = y[21]; x[22] = y[22]; x[23] = y[23];
+    x[12] = y[24]; x[19] = y[25]; x[18] = y[26]; x[27] = y[27]; x[26] = y[28]; x[24] = y[29];
+    x[25] = y[30]; x[37] = y[31]; x[36] = y[32]; x[35] = y[33]; x[42] = y[34]; x[43] = y[35];
+    x[44] = y[36]; x[51] = y[37]; x[50] = y[38]; x[49] = y[39]; x[31] = y[40]; x[34] = y[41];
+    x[32] = y[42]; x[33] = y[43]; x[45] = y[44]; x[46] = y[45]; x[52] = y[46]; x[55] = y[47];
+    x[56] = y[48]; x[47] = y[49]; x[57] = y[50]; x[58] = y[51]; x[48] = y[52]; x[54] = y[53];
+    x[53] = y[54]; x[41] = y[55]; x[40] = y[56]; x[38] = y[57]; x[39] = y[58]; x[62] = y[59];
+    x[61] = y[60]; x[59] = y[61]; x[60] = y[62]; x[91] = y[63]; x[92] = y[64]; x[93] = y[65];
+    x[79] = y[66]; x[78] = y[67]; x[65] = y[68]; x[64] = y[69]; x[63] = y[70]; x[77] = y[71];
+    x[80] = y[72]; x[81] = y[73]; x[66] = y[74]; x[69] = y[75]; x[70] = y[76]; x[83] = y[77];
+    x[71] = y[78]; x[72] = y[79]; x[68] = y[80]; x[82] = y[81]; x[67] = y[82]; x[94] = y[83];
+    x[95] = y[84]; x[90] = y[85]; x[89] = y[86]; x[86] = y[87]; x[84] = y[88]; x[85] = y[89];
+    x[96] = y[90]; x[87] = y[91]; x[88] = y[92]; x[97] = y[93]; x[76] = y[94]; x[75] = y[95];
+    x[73] = y[96]; x[74] = y[97];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
-static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[94]; w[94] = acc * (1.0 / A[594]); }
     { double acc = w[95]; acc -= A[598] * w[94]; w[95] = acc * (1.0 / A[599]); }
     { double acc = w[96]; acc -= A[602] * w[94]; acc -= A[603] * w[95]; w[96] = acc * (1.0 / A[604]); }
@@ -8877,10 +8848,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[96]; acc -= A[605] * w[97]; w[96] = acc; }
     { double acc = w[95]; acc -= A[600] * w[96]; acc -= A[601] * w[97]; w[95] = acc; }
     { double acc = w[94]; acc -= A[595] * w[95]; acc -= A[596] * w[96]; acc -= A[597] * w[97]; w[94] = acc; }
-    { int p = 94 + piv[97]; double t = w[97]; w[97] = w[p]; w[p] = t; }
-    { int p = 94 + piv[96]; double t = w[96]; w[96] = w[p]; w[p] = t; }
-    { int p = 94 + piv[95]; double t = w[95]; w[95] = w[p]; w[p] = t; }
-    { int p = 94 + piv[94]; double t = w[94]; w[94] = w[p]; w[p] = t; }
+    { double g0 = w[94], g1 = w[95], g2 = w[96], g3 = w[97]; w[94 + perm[94]] = g0; w[94 + perm[95]] = g1; w[94 + perm[96]] = g2; w[94 + perm[97]] = g3; }
     w[74] -= off[285] * w[94];
     w[75] -= off[286] * w[94];
     w[80] -= off[287] * w[94];
@@ -8893,8 +8861,6 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     w[75] -= off[294] * w[96];
     w[80] -= off[295] * w[96];
     w[82] -= off[296] * w[96];
-}
-static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[83]; w[83] = acc * (1.0 / A[473]); }
     { double acc = w[84]; acc -= A[484] * w[83]; w[84] = acc * (1.0 / A[485]); }
     { double acc = w[85]; acc -= A[495] * w[83]; acc -= A[496] * w[84]; w[85] = acc * (1.0 / A[497]); }
@@ -8916,17 +8882,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[85]; acc -= A[498] * w[86]; acc -= A[499] * w[87]; acc -= A[500] * w[88]; acc -= A[501] * w[89]; acc -= A[502] * w[90]; acc -= A[503] * w[91]; acc -= A[504] * w[92]; acc -= A[505] * w[93]; w[85] = acc; }
     { double acc = w[84]; acc -= A[486] * w[85]; acc -= A[487] * w[86]; acc -= A[488] * w[87]; acc -= A[489] * w[88]; acc -= A[490] * w[89]; acc -= A[491] * w[90]; acc -= A[492] * w[91]; acc -= A[493] * w[92]; acc -= A[494] * w[93]; w[84] = acc; }
     { double acc = w[83]; acc -= A[474] * w[84]; acc -= A[475] * w[85]; acc -= A[476] * w[86]; acc -= A[477] * w[87]; acc -= A[478] * w[88]; acc -= A[479] * w[89]; acc -= A[480] * w[90]; acc -= A[481] * w[91]; acc -= A[482] * w[92]; acc -= A[483] * w[93]; w[83] = acc; }
-    { int p = 83 + piv[93]; double t = w[93]; w[93] = w[p]; w[p] = t; }
-    { int p = 83 + piv[92]; double t = w[92]; w[92] = w[p]; w[p] = t; }
-    { int p = 83 + piv[91]; double t = w[91]; w[91] = w[p]; w[p] = t; }
-    { int p = 83 + piv[90]; double t = w[90]; w[90] = w[p]; w[p] = t; }
-    { int p = 83 + piv[89]; double t = w[89]; w[89] = w[p]; w[p] = t; }
-    { int p = 83 + piv[88]; double t = w[88]; w[88] = w[p]; w[p] = t; }
-    { int p = 83 + piv[87]; double t = w[87]; w[87] = w[p]; w[p] = t; }
-    { int p = 83 + piv[86]; double t = w[86]; w[86] = w[p]; w[p] = t; }
-    { int p = 83 + piv[85]; double t = w[85]; w[85] = w[p]; w[p] = t; }
-    { int p = 83 + piv[84]; double t = w[84]; w[84] = w[p]; w[p] = t; }
-    { int p = 83 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
+    { double g0 = w[83], g1 = w[84], g2 = w[85], g3 = w[86], g4 = w[87], g5 = w[88], g6 = w[89], g7 = w[90], g8 = w[91], g9 = w[92], g10 = w[93]; w[83 + perm[83]] = g0; w[83 + perm[84]] = g1; w[83 + perm[85]] = g2; w[83 + perm[86]] = g3; w[83 + perm[87]] = g4; w[83 + perm[88]] = g5; w[83 + perm[89]] = g6; w[83 + perm[90]] = g7; w[83 + perm[91]] = g8; w[83 + perm[92]] = g9; w[83 + perm[93]] = g10; }
     w[44] -= off[259] * w[83];
     w[45] -= off[260] * w[83];
     w[49] -= off[261] * w[83];
@@ -8954,7 +8910,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     w[64] -= off[283] * w[89];
     w[65] -= off[284] * w[90];
 }
-static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[72]; w[72] = acc * (1.0 / A[352]); }
     { double acc = w[73]; acc -= A[363] * w[72]; w[73] = acc * (1.0 / A[364]); }
     { double acc = w[74]; acc -= A[374] * w[72]; acc -= A[375] * w[73]; w[74] = acc * (1.0 / A[376]); }
@@ -8976,17 +8932,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[74]; acc -= A[377] * w[75]; acc -= A[378] * w[76]; acc -= A[379] * w[77]; acc -= A[380] * w[78]; acc -= A[381] * w[79]; acc -= A[382] * w[80]; acc -= A[383] * w[81]; acc -= A[384] * w[82]; w[74] = acc; }
     { double acc = w[73]; acc -= A[365] * w[74]; acc -= A[366] * w[75]; acc -= A[367] * w[76]; acc -= A[368] * w[77]; acc -= A[369] * w[78]; acc -= A[370] * w[79]; acc -= A[371] * w[80]; acc -= A[372] * w[81]; acc -= A[373] * w[82]; w[73] = acc; }
     { double acc = w[72]; acc -= A[353] * w[73]; acc -= A[354] * w[74]; acc -= A[355] * w[75]; acc -= A[356] * w[76]; acc -= A[357] * w[77]; acc -= A[358] * w[78]; acc -= A[359] * w[79]; acc -= A[360] * w[80]; acc -= A[361] * w[81]; acc -= A[362] * w[82]; w[72] = acc; }
-    { int p = 72 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 72 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
-    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
-    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { double g0 = w[72], g1 = w[73], g2 = w[74], g3 = w[75], g4 = w[76], g5 = w[77], g6 = w[78], g7 = w[79], g8 = w[80], g9 = w[81], g10 = w[82]; w[72 + perm[72]] = g0; w[72 + perm[73]] = g1; w[72 + perm[74]] = g2; w[72 + perm[75]] = g3; w[72 + perm[76]] = g4; w[72 + perm[77]] = g5; w[72 + perm[78]] = g6; w[72 + perm[79]] = g7; w[72 + perm[80]] = g8; w[72 + perm[81]] = g9; w[72 + perm[82]] = g10; }
     w[44] -= off[235] * w[72];
     w[45] -= off[236] * w[72];
     w[49] -= off[237] * w[72];
@@ -9035,8 +8981,6 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[45] -= off[217] * w[68];
     w[49] -= off[218] * w[68];
     w[52] -= off[219] * w[68];
-}
-static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[67]; w[67] = acc * (1.0 / A[347]); }
     w[35] -= off[210] * w[67];
     w[44] -= off[211] * w[67];
@@ -9061,6 +9005,8 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[45] -= off[197] * w[64];
     w[49] -= off[198] * w[64];
     w[52] -= off[199] * w[64];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[63]; w[63] = acc * (1.0 / A[343]); }
     w[34] -= off[190] * w[63];
     w[44] -= off[191] * w[63];
@@ -9074,10 +9020,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[61]; acc -= A[338] * w[62]; w[61] = acc; }
     { double acc = w[60]; acc -= A[333] * w[61]; acc -= A[334] * w[62]; w[60] = acc; }
     { double acc = w[59]; acc -= A[328] * w[60]; acc -= A[329] * w[61]; acc -= A[330] * w[62]; w[59] = acc; }
-    { int p = 59 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
-    { int p = 59 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
-    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    { double g0 = w[59], g1 = w[60], g2 = w[61], g3 = w[62]; w[59 + perm[59]] = g0; w[59 + perm[60]] = g1; w[59 + perm[61]] = g2; w[59 + perm[62]] = g3; }
     w[46] -= off[178] * w[59];
     w[47] -= off[179] * w[59];
     w[53] -= off[180] * w[59];
@@ -9097,10 +9040,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[57]; acc -= A[322] * w[58]; w[57] = acc; }
     { double acc = w[56]; acc -= A[317] * w[57]; acc -= A[318] * w[58]; w[56] = acc; }
     { double acc = w[55]; acc -= A[312] * w[56]; acc -= A[313] * w[57]; acc -= A[314] * w[58]; w[55] = acc; }
-    { int p = 55 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
-    { int p = 55 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 55 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
-    { int p = 55 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
+    { double g0 = w[55], g1 = w[56], g2 = w[57], g3 = w[58]; w[55 + perm[55]] = g0; w[55 + perm[56]] = g1; w[55 + perm[57]] = g2; w[55 + perm[58]] = g3; }
     w[40] -= off[166] * w[55];
     w[41] -= off[167] * w[55];
     w[42] -= off[168] * w[55];
@@ -9114,7 +9054,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[42] -= off[176] * w[57];
     w[43] -= off[177] * w[57];
 }
-static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[44]; w[44] = acc * (1.0 / A[190]); }
     { double acc = w[45]; acc -= A[201] * w[44]; w[45] = acc * (1.0 / A[202]); }
     { double acc = w[46]; acc -= A[212] * w[44]; acc -= A[213] * w[45]; w[46] = acc * (1.0 / A[214]); }
@@ -9136,17 +9076,7 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     { double acc = w[46]; acc -= A[215] * w[47]; acc -= A[216] * w[48]; acc -= A[217] * w[49]; acc -= A[218] * w[50]; acc -= A[219] * w[51]; acc -= A[220] * w[52]; acc -= A[221] * w[53]; acc -= A[222] * w[54]; w[46] = acc; }
     { double acc = w[45]; acc -= A[203] * w[46]; acc -= A[204] * w[47]; acc -= A[205] * w[48]; acc -= A[206] * w[49]; acc -= A[207] * w[50]; acc -= A[208] * w[51]; acc -= A[209] * w[52]; acc -= A[210] * w[53]; acc -= A[211] * w[54]; w[45] = acc; }
     { double acc = w[44]; acc -= A[191] * w[45]; acc -= A[192] * w[46]; acc -= A[193] * w[47]; acc -= A[194] * w[48]; acc -= A[195] * w[49]; acc -= A[196] * w[50]; acc -= A[197] * w[51]; acc -= A[198] * w[52]; acc -= A[199] * w[53]; acc -= A[200] * w[54]; w[44] = acc; }
-    { int p = 44 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
-    { int p = 44 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 44 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 44 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 44 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 44 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 44 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
-    { int p = 44 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 44 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 44 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 44 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
+    { double g0 = w[44], g1 = w[45], g2 = w[46], g3 = w[47], g4 = w[48], g5 = w[49], g6 = w[50], g7 = w[51], g8 = w[52], g9 = w[53], g10 = w[54]; w[44 + perm[44]] = g0; w[44 + perm[45]] = g1; w[44 + perm[46]] = g2; w[44 + perm[47]] = g3; w[44 + perm[48]] = g4; w[44 + perm[49]] = g5; w[44 + perm[50]] = g6; w[44 + perm[51]] = g7; w[44 + perm[52]] = g8; w[44 + perm[53]] = g9; w[44 + perm[54]] = g10; }
     w[16] -= off[142] * w[44];
     w[17] -= off[143] * w[44];
     w[21] -= off[144] * w[44];
@@ -9171,8 +9101,6 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     w[37] -= off[163] * w[54];
     w[38] -= off[164] * w[54];
     w[39] -= off[165] * w[54];
-}
-static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[40]; w[40] = acc * (1.0 / A[174]); }
     { double acc = w[41]; acc -= A[178] * w[40]; w[41] = acc * (1.0 / A[179]); }
     { double acc = w[42]; acc -= A[182] * w[40]; acc -= A[183] * w[41]; w[42] = acc * (1.0 / A[184]); }
@@ -9180,10 +9108,7 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     { double acc = w[42]; acc -= A[185] * w[43]; w[42] = acc; }
     { double acc = w[41]; acc -= A[180] * w[42]; acc -= A[181] * w[43]; w[41] = acc; }
     { double acc = w[40]; acc -= A[175] * w[41]; acc -= A[176] * w[42]; acc -= A[177] * w[43]; w[40] = acc; }
-    { int p = 40 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 40 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
-    { int p = 40 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 40 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
+    { double g0 = w[40], g1 = w[41], g2 = w[42], g3 = w[43]; w[40 + perm[40]] = g0; w[40 + perm[41]] = g1; w[40 + perm[42]] = g2; w[40 + perm[43]] = g3; }
     w[3] -= off[126] * w[40];
     w[4] -= off[127] * w[40];
     w[5] -= off[128] * w[40];
@@ -9212,6 +9137,8 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     w[17] -= off[118] * w[38];
     w[21] -= off[119] * w[38];
     w[24] -= off[120] * w[38];
+}
+static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[37]; w[37] = acc * (1.0 / A[171]); }
     w[9] -= off[111] * w[37];
     w[16] -= off[112] * w[37];
@@ -9261,10 +9188,7 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     { double acc = w[29]; acc -= A[160] * w[30]; w[29] = acc; }
     { double acc = w[28]; acc -= A[155] * w[29]; acc -= A[156] * w[30]; w[28] = acc; }
     { double acc = w[27]; acc -= A[150] * w[28]; acc -= A[151] * w[29]; acc -= A[152] * w[30]; w[27] = acc; }
-    { int p = 27 + piv[30]; double t = w[30]; w[30] = w[p]; w[p] = t; }
-    { int p = 27 + piv[29]; double t = w[29]; w[29] = w[p]; w[p] = t; }
-    { int p = 27 + piv[28]; double t = w[28]; w[28] = w[p]; w[p] = t; }
-    { int p = 27 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
+    { double g0 = w[27], g1 = w[28], g2 = w[29], g3 = w[30]; w[27 + perm[27]] = g0; w[27 + perm[28]] = g1; w[27 + perm[29]] = g2; w[27 + perm[30]] = g3; }
     w[18] -= off[69] * w[27];
     w[19] -= off[70] * w[27];
     w[25] -= off[71] * w[27];
@@ -9278,7 +9202,7 @@ static void solve_transposed_digging_5(const double *restrict A, const double *r
     w[25] -= off[79] * w[29];
     w[26] -= off[80] * w[29];
 }
-static void solve_transposed_digging_6(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_5(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[16]; w[16] = acc * (1.0 / A[28]); }
     { double acc = w[17]; acc -= A[39] * w[16]; w[17] = acc * (1.0 / A[40]); }
     { double acc = w[18]; acc -= A[50] * w[16]; acc -= A[51] * w[17]; w[18] = acc * (1.0 / A[52]); }
@@ -9300,17 +9224,7 @@ static void solve_transposed_digging_6(const double *restrict A, const double *r
     { double acc = w[18]; acc -= A[53] * w[19]; acc -= A[54] * w[20]; acc -= A[55] * w[21]; acc -= A[56] * w[22]; acc -= A[57] * w[23]; acc -= A[58] * w[24]; acc -= A[59] * w[25]; acc -= A[60] * w[26]; w[18] = acc; }
     { double acc = w[17]; acc -= A[41] * w[18]; acc -= A[42] * w[19]; acc -= A[43] * w[20]; acc -= A[44] * w[21]; acc -= A[45] * w[22]; acc -= A[46] * w[23]; acc -= A[47] * w[24]; acc -= A[48] * w[25]; acc -= A[49] * w[26]; w[17] = acc; }
     { double acc = w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; acc -= A[33] * w[21]; acc -= A[34] * w[22]; acc -= A[35] * w[23]; acc -= A[36] * w[24]; acc -= A[37] * w[25]; acc -= A[38] * w[26]; w[16] = acc; }
-    { int p = 16 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 16 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 16 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 16 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 16 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 16 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 16 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 16 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 16 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 16 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 16 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { double g0 = w[16], g1 = w[17], g2 = w[18], g3 = w[19], g4 = w[20], g5 = w[21], g6 = w[22], g7 = w[23], g8 = w[24], g9 = w[25], g10 = w[26]; w[16 + perm[16]] = g0; w[16 + perm[17]] = g1; w[16 + perm[18]] = g2; w[16 + perm[19]] = g3; w[16 + perm[20]] = g4; w[16 + perm[21]] = g5; w[16 + perm[22]] = g6; w[16 + perm[23]] = g7; w[16 + perm[24]] = g8; w[16 + perm[25]] = g9; w[16 + perm[26]] = g10; }
     w[3] -= off[45] * w[16];
     w[4] -= off[46] * w[16];
     w[5] -= off[47] * w[16];
@@ -9359,8 +9273,6 @@ static void solve_transposed_digging_6(const double *restrict A, const double *r
     w[4] -= off[27] * w[12];
     w[5] -= off[28] * w[12];
     w[6] -= off[29] * w[12];
-}
-static void solve_transposed_digging_7(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[11]; w[11] = acc * (1.0 / A[23]); }
     w[1] -= off[20] * w[11];
     w[3] -= off[21] * w[11];
@@ -9385,6 +9297,8 @@ static void solve_transposed_digging_7(const double *restrict A, const double *r
     w[4] -= off[7] * w[8];
     w[5] -= off[8] * w[8];
     w[6] -= off[9] * w[8];
+}
+static void solve_transposed_digging_6(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
     w[0] -= off[0] * w[7];
     w[3] -= off[1] * w[7];
@@ -9398,26 +9312,22 @@ static void solve_transposed_digging_7(const double *restrict A, const double *r
     { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
     { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
     { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
-    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4], g2 = w[5], g3 = w[6]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; w[3 + perm[5]] = g2; w[3 + perm[6]] = g3; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_digging(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 98; ++j) w[j] = c[col_order_digging[j]];
-    solve_transposed_digging_0(A, off, piv, w);
-    solve_transposed_digging_1(A, off, piv, w);
-    solve_transposed_digging_2(A, off, piv, w);
-    solve_transposed_digging_3(A, off, piv, w);
-    solve_transposed_digging_4(A, off, piv, w);
-    solve_transposed_digging_5(A, off, piv, w);
-    solve_transposed_digging_6(A, off, piv, w);
-    solve_transposed_digging_7(A, off, piv, w);
+    solve_transposed_digging_0(A, off, perm, w);
+    solve_transposed_digging_1(A, off, perm, w);
+    solve_transposed_digging_2(A, off, perm, w);
+    solve_transposed_digging_3(A, off, perm, w);
+    solve_transposed_digging_4(A, off, perm, w);
+    solve_transposed_digging_5(A, off, perm, w);
+    solve_transposed_digging_6(A, off, perm, w);
     for (int i = 0; i < 98; ++i) x[row_order_digging[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -9459,9 +9369,10 @@ static const int diag_slot_level_cut[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 1
 static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 60, 65, 70, 75, 80, 85, 90, 95, 100, 105, 110, 115, 120, 125, 130, 135, 140, 145, 149, 155, 161, 161, 165, 171, 177, 177, 182, 187, 192, 197, 201, 205, 209, 209, 213, 217, 221, 221, 225, 231, 237, 237, 242, 246, 250, 254, 254, 258, 262, 264, 266, 268, 272, 272, 272, 277, 282, 287, 291, 297, 303, 303, 307, 311, 315, 315};
 static const int off_col_level_cut[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 7, 9, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 9, 16, 17, 21, 26, 19, 20, 24, 25, 27, 18, 20, 24, 25, 27, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 22, 28, 29, 30, 31, 23, 28, 29, 30, 31, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 3, 4, 5, 6, 10, 11, 12, 32, 33, 34, 10, 11, 12, 32, 33, 34, 3, 4, 5, 6, 13, 14, 15, 35, 36, 37, 13, 14, 15, 35, 36, 37, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 50, 51, 52, 53, 50, 51, 52, 53, 50, 51, 52, 53, 54, 55, 56, 57, 54, 55, 56, 57, 54, 55, 56, 57, 16, 17, 21, 26, 39, 40, 41, 42, 43, 58, 39, 40, 41, 42, 43, 58, 28, 29, 30, 31, 59, 70, 71, 72, 73, 70, 71, 72, 73, 70, 71, 72, 73, 20, 24, 25, 27, 20, 24, 25, 27, 44, 46, 60, 74, 45, 47, 28, 29, 30, 31, 45, 79, 80, 83, 85, 60, 79, 80, 83, 85, 44, 79, 80, 83, 85, 20, 24, 25, 27, 48, 49, 61, 87, 88, 89, 48, 49, 61, 87, 88, 89, 90, 91, 92, 93, 90, 91, 92, 93, 90, 91, 92, 93};
 static const int off_value_level_cut[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 45, 46, 47, 48, 49, 51, 52, 53, 54, 55, 57, 58, 59, 60, 61, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 221, 233, 127, 128, 129, 131, 130, 121, 122, 123, 125, 124, 115, 116, 117, 119, 118, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 227, 228, 229, 231, 230, 255, 256, 257, 259, 258, 261, 262, 263, 265, 264, 267, 268, 269, 271, 270, 337, 338, 339, 340, 341, 325, 326, 327, 328, 329, 377, 378, 379, 380, 381, 389, 390, 391, 392, 393, 442, 446, 444, 445, 443, 454, 458, 456, 457, 455, 467, 468, 469, 470, 471, 479, 480, 481, 482, 483, 63, 64, 65, 66, 87, 88, 89, 96, 95, 94, 97, 98, 99, 106, 105, 104, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 332, 333, 334, 335, 331, 350, 351, 352, 353, 349, 384, 385, 386, 387, 383, 474, 475, 476, 477, 473, 71, 73, 72, 74, 79, 81, 80, 82, 107, 109, 108, 110, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 273, 274, 276, 275, 297, 298, 299, 306, 304, 305, 307, 308, 309, 316, 314, 315, 452, 450, 451, 449, 448, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 397, 398, 403, 404, 405, 406, 411, 416, 421, 426, 431, 436, 466, 464, 465, 463, 550, 551, 552, 554, 553, 544, 545, 546, 548, 547, 538, 539, 540, 542, 541, 485, 486, 487, 488, 509, 511, 510, 518, 517, 516, 519, 521, 520, 528, 527, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_level_cut) */
-static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_level_cut) */
+static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -9472,10 +9383,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     y[4] = b[4];
     y[5] = b[80];
     y[6] = b[94];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]], g2 = y[3 + perm[5]], g3 = y[3 + perm[6]]; y[3] = g0; y[4] = g1; y[5] = g2; y[6] = g3; }
     y[4] -= A[4] * y[3];
     y[5] -= A[5] * y[3];
     y[6] -= A[6] * y[3];
@@ -9511,7 +9419,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     { double acc = b[24]; acc -= off[40] * y[2]; acc -= off[41] * y[3]; acc -= off[42] * y[4]; acc -= off[43] * y[5]; acc -= off[44] * y[6]; y[15] = acc; }
     y[15] *= 1.0 / A[27];
 }
-static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[45] * y[3]; acc -= off[46] * y[4]; acc -= off[47] * y[5]; acc -= off[48] * y[6]; y[16] = acc; }
     { double acc = b[9]; acc -= off[49] * y[3]; acc -= off[50] * y[4]; acc -= off[51] * y[5]; acc -= off[52] * y[6]; y[17] = acc; }
     { double acc = b[34]; acc -= off[53] * y[7]; y[18] = acc; }
@@ -9528,22 +9436,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[29] = b[95];
     y[30] = b[96];
     y[31] = b[97];
-    { int p = 16 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 16 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 16 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 16 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 16 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 16 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 16 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 16 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 16 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 16 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 16 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 16 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
-    { int p = 16 + piv[28]; double t = y[28]; y[28] = y[p]; y[p] = t; }
-    { int p = 16 + piv[29]; double t = y[29]; y[29] = y[p]; y[p] = t; }
-    { int p = 16 + piv[30]; double t = y[30]; y[30] = y[p]; y[p] = t; }
-    { int p = 16 + piv[31]; double t = y[31]; y[31] = y[p]; y[p] = t; }
+    { double g0 = y[16 + perm[16]], g1 = y[16 + perm[17]], g2 = y[16 + perm[18]], g3 = y[16 + perm[19]], g4 = y[16 + perm[20]], g5 = y[16 + perm[21]], g6 = y[16 + perm[22]], g7 = y[16 + perm[23]], g8 = y[16 + perm[24]], g9 = y[16 + perm[25]], g10 = y[16 + perm[26]], g11 = y[16 + perm[27]], g12 = y[16 + perm[28]], g13 = y[16 + perm[29]], g14 = y[16 + perm[30]], g15 = y[16 + perm[31]]; y[16] = g0; y[17] = g1; y[18] = g2; y[19] = g3; y[20] = g4; y[21] = g5; y[22] = g6; y[23] = g7; y[24] = g8; y[25] = g9; y[26] = g10; y[27] = g11; y[28] = g12; y[29] = g13; y[30] = g14; y[31] = g15; }
     y[17] -= A[29] * y[16];
     y[18] -= A[30] * y[16];
     y[19] -= A[31] * y[16];
@@ -9801,7 +9694,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[16] -= A[44] * y[17];
     y[16] *= 1.0 / A[28];
 }
-static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[21]; acc -= off[55] * y[9]; acc -= off[56] * y[16]; acc -= off[57] * y[17]; acc -= off[58] * y[21]; acc -= off[59] * y[26]; y[32] = acc; }
     y[32] *= 1.0 / A[284];
     { double acc = b[20]; acc -= off[60] * y[8]; acc -= off[61] * y[16]; acc -= off[62] * y[17]; acc -= off[63] * y[21]; acc -= off[64] * y[26]; y[33] = acc; }
@@ -9842,10 +9735,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     { double acc = b[16]; acc -= off[149] * y[10]; acc -= off[150] * y[11]; acc -= off[151] * y[12]; acc -= off[152] * y[32]; acc -= off[153] * y[33]; acc -= off[154] * y[34]; y[51] = acc; }
     { double acc = b[17]; acc -= off[155] * y[10]; acc -= off[156] * y[11]; acc -= off[157] * y[12]; acc -= off[158] * y[32]; acc -= off[159] * y[33]; acc -= off[160] * y[34]; y[52] = acc; }
     y[53] = b[82];
-    { int p = 50 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 50 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 50 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 50 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
+    { double g0 = y[50 + perm[50]], g1 = y[50 + perm[51]], g2 = y[50 + perm[52]], g3 = y[50 + perm[53]]; y[50] = g0; y[51] = g1; y[52] = g2; y[53] = g3; }
     y[51] -= A[303] * y[50];
     y[52] -= A[304] * y[50];
     y[53] -= A[305] * y[50];
@@ -9862,16 +9752,11 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[51] *= 1.0 / A[307];
     y[50] -= A[306] * y[51];
     y[50] *= 1.0 / A[302];
-}
-static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[25]; acc -= off[161] * y[3]; acc -= off[162] * y[4]; acc -= off[163] * y[5]; acc -= off[164] * y[6]; y[54] = acc; }
     { double acc = b[28]; acc -= off[165] * y[13]; acc -= off[166] * y[14]; acc -= off[167] * y[15]; acc -= off[168] * y[35]; acc -= off[169] * y[36]; acc -= off[170] * y[37]; y[55] = acc; }
     { double acc = b[29]; acc -= off[171] * y[13]; acc -= off[172] * y[14]; acc -= off[173] * y[15]; acc -= off[174] * y[35]; acc -= off[175] * y[36]; acc -= off[176] * y[37]; y[56] = acc; }
     y[57] = b[84];
-    { int p = 54 + piv[54]; double t = y[54]; y[54] = y[p]; y[p] = t; }
-    { int p = 54 + piv[55]; double t = y[55]; y[55] = y[p]; y[p] = t; }
-    { int p = 54 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 54 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
+    { double g0 = y[54 + perm[54]], g1 = y[54 + perm[55]], g2 = y[54 + perm[56]], g3 = y[54 + perm[57]]; y[54] = g0; y[55] = g1; y[56] = g2; y[57] = g3; }
     y[55] -= A[319] * y[54];
     y[56] -= A[320] * y[54];
     y[57] -= A[321] * y[54];
@@ -9892,6 +9777,8 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[58] *= 1.0 / A[334];
     { double acc = b[52]; acc -= off[182] * y[20]; acc -= off[183] * y[24]; acc -= off[184] * y[25]; acc -= off[185] * y[27]; acc -= off[186] * y[38]; y[59] = acc; }
     y[59] *= 1.0 / A[335];
+}
+static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[57]; acc -= off[187] * y[20]; acc -= off[188] * y[24]; acc -= off[189] * y[25]; acc -= off[190] * y[27]; acc -= off[191] * y[38]; y[60] = acc; }
     y[60] *= 1.0 / A[336];
     { double acc = b[69]; acc -= off[192] * y[20]; acc -= off[193] * y[24]; acc -= off[194] * y[25]; acc -= off[195] * y[27]; acc -= off[196] * y[38]; y[61] = acc; }
@@ -9900,10 +9787,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[15]; acc -= off[201] * y[50]; acc -= off[202] * y[51]; acc -= off[203] * y[52]; acc -= off[204] * y[53]; y[63] = acc; }
     { double acc = b[18]; acc -= off[205] * y[50]; acc -= off[206] * y[51]; acc -= off[207] * y[52]; acc -= off[208] * y[53]; y[64] = acc; }
     y[65] = b[83];
-    { int p = 62 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 62 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 62 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 62 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
+    { double g0 = y[62 + perm[62]], g1 = y[62 + perm[63]], g2 = y[62 + perm[64]], g3 = y[62 + perm[65]]; y[62] = g0; y[63] = g1; y[64] = g2; y[65] = g3; }
     y[63] -= A[339] * y[62];
     y[64] -= A[340] * y[62];
     y[65] -= A[341] * y[62];
@@ -9924,10 +9808,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[27]; acc -= off[213] * y[54]; acc -= off[214] * y[55]; acc -= off[215] * y[56]; acc -= off[216] * y[57]; y[67] = acc; }
     { double acc = b[30]; acc -= off[217] * y[54]; acc -= off[218] * y[55]; acc -= off[219] * y[56]; acc -= off[220] * y[57]; y[68] = acc; }
     y[69] = b[85];
-    { int p = 66 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 66 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 66 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 66 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
+    { double g0 = y[66 + perm[66]], g1 = y[66 + perm[67]], g2 = y[66 + perm[68]], g3 = y[66 + perm[69]]; y[66] = g0; y[67] = g1; y[68] = g2; y[69] = g3; }
     y[67] -= A[355] * y[66];
     y[68] -= A[356] * y[66];
     y[69] -= A[357] * y[66];
@@ -9948,10 +9829,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[45]; acc -= off[225] * y[39]; acc -= off[226] * y[40]; acc -= off[227] * y[41]; acc -= off[228] * y[42]; acc -= off[229] * y[43]; acc -= off[230] * y[58]; y[71] = acc; }
     { double acc = b[46]; acc -= off[231] * y[39]; acc -= off[232] * y[40]; acc -= off[233] * y[41]; acc -= off[234] * y[42]; acc -= off[235] * y[43]; acc -= off[236] * y[58]; y[72] = acc; }
     y[73] = b[87];
-    { int p = 70 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 70 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
-    { int p = 70 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 70 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
+    { double g0 = y[70 + perm[70]], g1 = y[70 + perm[71]], g2 = y[70 + perm[72]], g3 = y[70 + perm[73]]; y[70] = g0; y[71] = g1; y[72] = g2; y[73] = g3; }
     y[71] -= A[371] * y[70];
     y[72] -= A[372] * y[70];
     y[73] -= A[373] * y[70];
@@ -9968,18 +9846,13 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[71] *= 1.0 / A[375];
     y[70] -= A[374] * y[71];
     y[70] *= 1.0 / A[370];
-}
-static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[65]; acc -= off[237] * y[28]; acc -= off[238] * y[29]; acc -= off[239] * y[30]; acc -= off[240] * y[31]; acc -= off[241] * y[59]; y[74] = acc; }
     y[74] *= 1.0 / A[386];
     { double acc = b[43]; acc -= off[242] * y[70]; acc -= off[243] * y[71]; acc -= off[244] * y[72]; acc -= off[245] * y[73]; y[75] = acc; }
     { double acc = b[44]; acc -= off[246] * y[70]; acc -= off[247] * y[71]; acc -= off[248] * y[72]; acc -= off[249] * y[73]; y[76] = acc; }
     { double acc = b[47]; acc -= off[250] * y[70]; acc -= off[251] * y[71]; acc -= off[252] * y[72]; acc -= off[253] * y[73]; y[77] = acc; }
     y[78] = b[88];
-    { int p = 75 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 75 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 75 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 75 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
+    { double g0 = y[75 + perm[75]], g1 = y[75 + perm[76]], g2 = y[75 + perm[77]], g3 = y[75 + perm[78]]; y[75] = g0; y[76] = g1; y[77] = g2; y[78] = g3; }
     y[76] -= A[388] * y[75];
     y[77] -= A[389] * y[75];
     y[78] -= A[390] * y[75];
@@ -9996,6 +9869,8 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     y[76] *= 1.0 / A[392];
     y[75] -= A[391] * y[76];
     y[75] *= 1.0 / A[387];
+}
+static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[59]; acc -= off[254] * y[20]; acc -= off[255] * y[24]; acc -= off[256] * y[25]; acc -= off[257] * y[27]; y[79] = acc; }
     { double acc = b[60]; acc -= off[258] * y[20]; acc -= off[259] * y[24]; acc -= off[260] * y[25]; acc -= off[261] * y[27]; y[80] = acc; }
     { double acc = b[61]; acc -= off[262] * y[44]; acc -= off[263] * y[46]; y[81] = acc; }
@@ -10004,14 +9879,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     { double acc = b[67]; acc -= off[268] * y[28]; acc -= off[269] * y[29]; acc -= off[270] * y[30]; acc -= off[271] * y[31]; y[84] = acc; }
     y[85] = b[91];
     y[86] = b[92];
-    { int p = 79 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 79 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
-    { int p = 79 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 79 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 79 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
-    { int p = 79 + piv[84]; double t = y[84]; y[84] = y[p]; y[p] = t; }
-    { int p = 79 + piv[85]; double t = y[85]; y[85] = y[p]; y[p] = t; }
-    { int p = 79 + piv[86]; double t = y[86]; y[86] = y[p]; y[p] = t; }
+    { double g0 = y[79 + perm[79]], g1 = y[79 + perm[80]], g2 = y[79 + perm[81]], g3 = y[79 + perm[82]], g4 = y[79 + perm[83]], g5 = y[79 + perm[84]], g6 = y[79 + perm[85]], g7 = y[79 + perm[86]]; y[79] = g0; y[80] = g1; y[81] = g2; y[82] = g3; y[83] = g4; y[84] = g5; y[85] = g6; y[86] = g7; }
     y[80] -= A[404] * y[79];
     y[81] -= A[405] * y[79];
     y[82] -= A[406] * y[79];
@@ -10082,16 +9950,11 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     y[88] *= 1.0 / A[468];
     { double acc = b[77]; acc -= off[282] * y[44]; acc -= off[283] * y[79]; acc -= off[284] * y[80]; acc -= off[285] * y[83]; acc -= off[286] * y[85]; y[89] = acc; }
     y[89] *= 1.0 / A[469];
-}
-static void solve_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[71]; acc -= off[287] * y[20]; acc -= off[288] * y[24]; acc -= off[289] * y[25]; acc -= off[290] * y[27]; y[90] = acc; }
     { double acc = b[74]; acc -= off[291] * y[48]; acc -= off[292] * y[49]; acc -= off[293] * y[61]; acc -= off[294] * y[87]; acc -= off[295] * y[88]; acc -= off[296] * y[89]; y[91] = acc; }
     { double acc = b[75]; acc -= off[297] * y[48]; acc -= off[298] * y[49]; acc -= off[299] * y[61]; acc -= off[300] * y[87]; acc -= off[301] * y[88]; acc -= off[302] * y[89]; y[92] = acc; }
     y[93] = b[89];
-    { int p = 90 + piv[90]; double t = y[90]; y[90] = y[p]; y[p] = t; }
-    { int p = 90 + piv[91]; double t = y[91]; y[91] = y[p]; y[p] = t; }
-    { int p = 90 + piv[92]; double t = y[92]; y[92] = y[p]; y[p] = t; }
-    { int p = 90 + piv[93]; double t = y[93]; y[93] = y[p]; y[p] = t; }
+    { double g0 = y[90 + perm[90]], g1 = y[90 + perm[91]], g2 = y[90 + perm[92]], g3 = y[90 + perm[93]]; y[90] = g0; y[91] = g1; y[92] = g2; y[93] = g3; }
     y[91] -= A[471] * y[90];
     y[92] -= A[472] * y[90];
     y[93] -= A[473] * y[90];
@@ -10112,10 +9975,7 @@ static void solve_level_cut_5(const double *restrict A, const double *restrict o
     { double acc = b[73]; acc -= off[307] * y[90]; acc -= off[308] * y[91]; acc -= off[309] * y[92]; acc -= off[310] * y[93]; y[95] = acc; }
     { double acc = b[76]; acc -= off[311] * y[90]; acc -= off[312] * y[91]; acc -= off[313] * y[92]; acc -= off[314] * y[93]; y[96] = acc; }
     y[97] = b[90];
-    { int p = 94 + piv[94]; double t = y[94]; y[94] = y[p]; y[p] = t; }
-    { int p = 94 + piv[95]; double t = y[95]; y[95] = y[p]; y[p] = t; }
-    { int p = 94 + piv[96]; double t = y[96]; y[96] = y[p]; y[p] = t; }
-    { int p = 94 + piv[97]; double t = y[97]; y[97] = y[p]; y[p] = t; }
+    { double g0 = y[94 + perm[94]], g1 = y[94 + perm[95]], g2 = y[94 + perm[96]], g3 = y[94 + perm[97]]; y[94] = g0; y[95] = g1; y[96] = g2; y[97] = g3; }
     y[95] -= A[487] * y[94];
     y[96] -= A[488] * y[94];
     y[97] -= A[489] * y[94];
@@ -10135,35 +9995,65 @@ static void solve_level_cut_5(const double *restrict A, const double *restrict o
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_level_cut_0(A, off, piv, b, y);
-    solve_level_cut_1(A, off, piv, b, y);
-    solve_level_cut_2(A, off, piv, b, y);
-    solve_level_cut_3(A, off, piv, b, y);
-    solve_level_cut_4(A, off, piv, b, y);
-    solve_level_cut_5(A, off, piv, b, y);
-    for (int j = 0; j < 98; ++j) x[col_order_level_cut[j]] = y[j];
+static void solve_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_level_cut_0(A, off, perm, b, y);
+    solve_level_cut_1(A, off, perm, b, y);
+    solve_level_cut_2(A, off, perm, b, y);
+    solve_level_cut_3(A, off, perm, b, y);
+    solve_level_cut_4(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[8] = y[8]; x[9] = y[9]; x[14] = y[10]; x[15] = y[11];
+    x[16] = y[12]; x[28] = y[13]; x[29] = y[14]; x[30] = y[15]; x[10] = y[16]; x[11] = y[17];
+    x[42] = y[18]; x[44] = y[19]; x[45] = y[20]; x[13] = y[21]; x[91] = y[22]; x[93] = y[23];
+    x[46] = y[24]; x[47] = y[25]; x[12] = y[26]; x[48] = y[27]; x[97] = y[28]; x[95] = y[29];
+    x[96] = y[30]; x[94] = y[31]; x[23] = y[32]; x[22] = y[33]; x[21] = y[34]; x[37] = y[35];
+    x[36] = y[36]; x[35] = y[37]; x[43] = y[38]; x[49] = y[39]; x[50] = y[40]; x[51] = y[41];
+    x[58] = y[42]; x[56] = y[43]; x[77] = y[44]; x[79] = y[45]; x[84] = y[46]; x[86] = y[47];
+    x[63] = y[48]; x[65] = y[49]; x[17] = y[50]; x[19] = y[51]; x[18] = y[52]; x[20] = y[53];
+    x[31] = y[54]; x[34] = y[55]; x[32] = y[56]; x[33] = y[57]; x[57] = y[58]; x[92] = y[59];
+    x[78] = y[60]; x[64] = y[61]; x[27] = y[62]; x[26] = y[63]; x[24] = y[64]; x[25] = y[65];
+    x[41] = y[66]; x[40] = y[67]; x[38] = y[68]; x[39] = y[69]; x[52] = y[70]; x[55] = y[71];
+    x[53] = y[72]; x[54] = y[73]; x[85] = y[74]; x[62] = y[75]; x[61] = y[76]; x[59] = y[77];
+    x[60] = y[78]; x[80] = y[79]; x[81] = y[80]; x[90] = y[81]; x[89] = y[82]; x[83] = y[83];
+    x[87] = y[84]; x[82] = y[85]; x[88] = y[86]; x[72] = y[87]; x[71] = y[88]; x[70] = y[89];
+    x[66] = y[90]; x[69] = y[91]; x[67] = y[92]; x[68] = y[93]; x[76] = y[94]; x[75] = y[95];
+    x[73] = y[96]; x[74] = y[97];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_level_cut[] = {0, 16, 32, 54, 74, 90};
+static const int solve_rows_level_cut[] = {0, 16, 32, 60, 79};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
-    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
-    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
-    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
-    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
-    if (first <= 5) solve_level_cut_5(A, off, piv, b, y);
-    for (int j = 0; j < 98; ++j) x[col_order_level_cut[j]] = y[j];
+    if (first <= 0) solve_level_cut_0(A, off, perm, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, perm, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, perm, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, perm, b, y);
+    if (first <= 4) solve_level_cut_4(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[8] = y[8]; x[9] = y[9]; x[14] = y[10]; x[15] = y[11];
+    x[16] = y[12]; x[28] = y[13]; x[29] = y[14]; x[30] = y[15]; x[10] = y[16]; x[11] = y[17];
+    x[42] = y[18]; x[44] = y[19]; x[45] = y[20]; x[13] = y[21]; x[91] = y[22]; x[93] = y[23];
+    x[46] = y[24]; x[47] = y[25]; x[12] = y[26]; x[48] = y[27]; x[97] = y[28]; x[95] = y[29];
+    x[96] = y[30]; x[94] = y[31]; x[23] = y[32]; x[22] = y[33]; x[21] = y[34]; x[37] = y[35];
+    x[36] = y[36]; x[35] = y[37]; x[43] = y[38]; x[49] = y[39]; x[50] = y[40]; x[51] = y[41];
+    x[58] = y[42]; x[56] = y[43]; x[77] = y[44]; x[79] = y[45]; x[84] = y[46]; x[86] = y[47];
+    x[63] = y[48]; x[65] = y[49]; x[17] = y[50]; x[19] = y[51]; x[18] = y[52]; x[20] = y[53];
+    x[31] = y[54]; x[34] = y[55]; x[32] = y[56]; x[33] = y[57]; x[57] = y[58]; x[92] = y[59];
+    x[78] = y[60]; x[64] = y[61]; x[27] = y[62]; x[26] = y[63]; x[24] = y[64]; x[25] = y[65];
+    x[41] = y[66]; x[40] = y[67]; x[38] = y[68]; x[39] = y[69]; x[52] = y[70]; x[55] = y[71];
+    x[53] = y[72]; x[54] = y[73]; x[85] = y[74]; x[62] = y[75]; x[61] = y[76]; x[59] = y[77];
+    x[60] = y[78]; x[80] = y[79]; x[81] = y[80]; x[90] = y[81]; x[89] = y[82]; x[83] = y[83];
+    x[87] = y[84]; x[82] = y[85]; x[88] = y[86]; x[72] = y[87]; x[71] = y[88]; x[70] = y[89];
+    x[66] = y[90]; x[69] = y[91]; x[67] = y[92]; x[68] = y[93]; x[76] = y[94]; x[75] = y[95];
+    x[73] = y[96]; x[74] = y[97];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
-static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[94]; w[94] = acc * (1.0 / A[486]); }
     { double acc = w[95]; acc -= A[490] * w[94]; w[95] = acc * (1.0 / A[491]); }
     { double acc = w[96]; acc -= A[494] * w[94]; acc -= A[495] * w[95]; w[96] = acc * (1.0 / A[496]); }
@@ -10171,10 +10061,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[96]; acc -= A[497] * w[97]; w[96] = acc; }
     { double acc = w[95]; acc -= A[492] * w[96]; acc -= A[493] * w[97]; w[95] = acc; }
     { double acc = w[94]; acc -= A[487] * w[95]; acc -= A[488] * w[96]; acc -= A[489] * w[97]; w[94] = acc; }
-    { int p = 94 + piv[97]; double t = w[97]; w[97] = w[p]; w[p] = t; }
-    { int p = 94 + piv[96]; double t = w[96]; w[96] = w[p]; w[p] = t; }
-    { int p = 94 + piv[95]; double t = w[95]; w[95] = w[p]; w[p] = t; }
-    { int p = 94 + piv[94]; double t = w[94]; w[94] = w[p]; w[p] = t; }
+    { double g0 = w[94], g1 = w[95], g2 = w[96], g3 = w[97]; w[94 + perm[94]] = g0; w[94 + perm[95]] = g1; w[94 + perm[96]] = g2; w[94 + perm[97]] = g3; }
     w[90] -= off[303] * w[94];
     w[91] -= off[304] * w[94];
     w[92] -= off[305] * w[94];
@@ -10194,10 +10081,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[92]; acc -= A[481] * w[93]; w[92] = acc; }
     { double acc = w[91]; acc -= A[476] * w[92]; acc -= A[477] * w[93]; w[91] = acc; }
     { double acc = w[90]; acc -= A[471] * w[91]; acc -= A[472] * w[92]; acc -= A[473] * w[93]; w[90] = acc; }
-    { int p = 90 + piv[93]; double t = w[93]; w[93] = w[p]; w[p] = t; }
-    { int p = 90 + piv[92]; double t = w[92]; w[92] = w[p]; w[p] = t; }
-    { int p = 90 + piv[91]; double t = w[91]; w[91] = w[p]; w[p] = t; }
-    { int p = 90 + piv[90]; double t = w[90]; w[90] = w[p]; w[p] = t; }
+    { double g0 = w[90], g1 = w[91], g2 = w[92], g3 = w[93]; w[90 + perm[90]] = g0; w[90 + perm[91]] = g1; w[90 + perm[92]] = g2; w[90 + perm[93]] = g3; }
     w[20] -= off[287] * w[90];
     w[24] -= off[288] * w[90];
     w[25] -= off[289] * w[90];
@@ -10232,8 +10116,6 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     w[80] -= off[274] * w[87];
     w[83] -= off[275] * w[87];
     w[85] -= off[276] * w[87];
-}
-static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[79]; w[79] = acc * (1.0 / A[403]); }
     { double acc = w[80]; acc -= A[411] * w[79]; w[80] = acc * (1.0 / A[412]); }
     { double acc = w[81]; acc -= A[419] * w[79]; acc -= A[420] * w[80]; w[81] = acc * (1.0 / A[421]); }
@@ -10249,14 +10131,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[81]; acc -= A[422] * w[82]; acc -= A[423] * w[83]; acc -= A[424] * w[84]; acc -= A[425] * w[85]; acc -= A[426] * w[86]; w[81] = acc; }
     { double acc = w[80]; acc -= A[413] * w[81]; acc -= A[414] * w[82]; acc -= A[415] * w[83]; acc -= A[416] * w[84]; acc -= A[417] * w[85]; acc -= A[418] * w[86]; w[80] = acc; }
     { double acc = w[79]; acc -= A[404] * w[80]; acc -= A[405] * w[81]; acc -= A[406] * w[82]; acc -= A[407] * w[83]; acc -= A[408] * w[84]; acc -= A[409] * w[85]; acc -= A[410] * w[86]; w[79] = acc; }
-    { int p = 79 + piv[86]; double t = w[86]; w[86] = w[p]; w[p] = t; }
-    { int p = 79 + piv[85]; double t = w[85]; w[85] = w[p]; w[p] = t; }
-    { int p = 79 + piv[84]; double t = w[84]; w[84] = w[p]; w[p] = t; }
-    { int p = 79 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 79 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 79 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
-    { int p = 79 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 79 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
+    { double g0 = w[79], g1 = w[80], g2 = w[81], g3 = w[82], g4 = w[83], g5 = w[84], g6 = w[85], g7 = w[86]; w[79 + perm[79]] = g0; w[79 + perm[80]] = g1; w[79 + perm[81]] = g2; w[79 + perm[82]] = g3; w[79 + perm[83]] = g4; w[79 + perm[84]] = g5; w[79 + perm[85]] = g6; w[79 + perm[86]] = g7; }
     w[20] -= off[254] * w[79];
     w[24] -= off[255] * w[79];
     w[25] -= off[256] * w[79];
@@ -10275,6 +10150,8 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[29] -= off[269] * w[84];
     w[30] -= off[270] * w[84];
     w[31] -= off[271] * w[84];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[75]; w[75] = acc * (1.0 / A[387]); }
     { double acc = w[76]; acc -= A[391] * w[75]; w[76] = acc * (1.0 / A[392]); }
     { double acc = w[77]; acc -= A[395] * w[75]; acc -= A[396] * w[76]; w[77] = acc * (1.0 / A[397]); }
@@ -10282,10 +10159,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[77]; acc -= A[398] * w[78]; w[77] = acc; }
     { double acc = w[76]; acc -= A[393] * w[77]; acc -= A[394] * w[78]; w[76] = acc; }
     { double acc = w[75]; acc -= A[388] * w[76]; acc -= A[389] * w[77]; acc -= A[390] * w[78]; w[75] = acc; }
-    { int p = 75 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 75 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 75 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 75 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
+    { double g0 = w[75], g1 = w[76], g2 = w[77], g3 = w[78]; w[75 + perm[75]] = g0; w[75 + perm[76]] = g1; w[75 + perm[77]] = g2; w[75 + perm[78]] = g3; }
     w[70] -= off[242] * w[75];
     w[71] -= off[243] * w[75];
     w[72] -= off[244] * w[75];
@@ -10304,8 +10178,6 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[30] -= off[239] * w[74];
     w[31] -= off[240] * w[74];
     w[59] -= off[241] * w[74];
-}
-static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[70]; w[70] = acc * (1.0 / A[370]); }
     { double acc = w[71]; acc -= A[374] * w[70]; w[71] = acc * (1.0 / A[375]); }
     { double acc = w[72]; acc -= A[378] * w[70]; acc -= A[379] * w[71]; w[72] = acc * (1.0 / A[380]); }
@@ -10313,10 +10185,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     { double acc = w[72]; acc -= A[381] * w[73]; w[72] = acc; }
     { double acc = w[71]; acc -= A[376] * w[72]; acc -= A[377] * w[73]; w[71] = acc; }
     { double acc = w[70]; acc -= A[371] * w[71]; acc -= A[372] * w[72]; acc -= A[373] * w[73]; w[70] = acc; }
-    { int p = 70 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 70 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
-    { int p = 70 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 70 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
+    { double g0 = w[70], g1 = w[71], g2 = w[72], g3 = w[73]; w[70 + perm[70]] = g0; w[70 + perm[71]] = g1; w[70 + perm[72]] = g2; w[70 + perm[73]] = g3; }
     w[16] -= off[221] * w[70];
     w[17] -= off[222] * w[70];
     w[21] -= off[223] * w[70];
@@ -10340,10 +10209,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     { double acc = w[68]; acc -= A[365] * w[69]; w[68] = acc; }
     { double acc = w[67]; acc -= A[360] * w[68]; acc -= A[361] * w[69]; w[67] = acc; }
     { double acc = w[66]; acc -= A[355] * w[67]; acc -= A[356] * w[68]; acc -= A[357] * w[69]; w[66] = acc; }
-    { int p = 66 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 66 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 66 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 66 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { double g0 = w[66], g1 = w[67], g2 = w[68], g3 = w[69]; w[66 + perm[66]] = g0; w[66 + perm[67]] = g1; w[66 + perm[68]] = g2; w[66 + perm[69]] = g3; }
     w[54] -= off[209] * w[66];
     w[55] -= off[210] * w[66];
     w[56] -= off[211] * w[66];
@@ -10363,10 +10229,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     { double acc = w[64]; acc -= A[349] * w[65]; w[64] = acc; }
     { double acc = w[63]; acc -= A[344] * w[64]; acc -= A[345] * w[65]; w[63] = acc; }
     { double acc = w[62]; acc -= A[339] * w[63]; acc -= A[340] * w[64]; acc -= A[341] * w[65]; w[62] = acc; }
-    { int p = 62 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { double g0 = w[62], g1 = w[63], g2 = w[64], g3 = w[65]; w[62 + perm[62]] = g0; w[62 + perm[63]] = g1; w[62 + perm[64]] = g2; w[62 + perm[65]] = g3; }
     w[50] -= off[197] * w[62];
     w[51] -= off[198] * w[62];
     w[52] -= off[199] * w[62];
@@ -10404,7 +10267,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     w[27] -= off[180] * w[58];
     w[38] -= off[181] * w[58];
 }
-static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[54]; w[54] = acc * (1.0 / A[318]); }
     { double acc = w[55]; acc -= A[322] * w[54]; w[55] = acc * (1.0 / A[323]); }
     { double acc = w[56]; acc -= A[326] * w[54]; acc -= A[327] * w[55]; w[56] = acc * (1.0 / A[328]); }
@@ -10412,10 +10275,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[56]; acc -= A[329] * w[57]; w[56] = acc; }
     { double acc = w[55]; acc -= A[324] * w[56]; acc -= A[325] * w[57]; w[55] = acc; }
     { double acc = w[54]; acc -= A[319] * w[55]; acc -= A[320] * w[56]; acc -= A[321] * w[57]; w[54] = acc; }
-    { int p = 54 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 54 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
-    { int p = 54 + piv[55]; double t = w[55]; w[55] = w[p]; w[p] = t; }
-    { int p = 54 + piv[54]; double t = w[54]; w[54] = w[p]; w[p] = t; }
+    { double g0 = w[54], g1 = w[55], g2 = w[56], g3 = w[57]; w[54 + perm[54]] = g0; w[54 + perm[55]] = g1; w[54 + perm[56]] = g2; w[54 + perm[57]] = g3; }
     w[3] -= off[161] * w[54];
     w[4] -= off[162] * w[54];
     w[5] -= off[163] * w[54];
@@ -10439,10 +10299,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[52]; acc -= A[313] * w[53]; w[52] = acc; }
     { double acc = w[51]; acc -= A[308] * w[52]; acc -= A[309] * w[53]; w[51] = acc; }
     { double acc = w[50]; acc -= A[303] * w[51]; acc -= A[304] * w[52]; acc -= A[305] * w[53]; w[50] = acc; }
-    { int p = 50 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 50 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 50 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 50 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
+    { double g0 = w[50], g1 = w[51], g2 = w[52], g3 = w[53]; w[50 + perm[50]] = g0; w[50 + perm[51]] = g1; w[50 + perm[52]] = g2; w[50 + perm[53]] = g3; }
     w[3] -= off[145] * w[50];
     w[4] -= off[146] * w[50];
     w[5] -= off[147] * w[50];
@@ -10568,7 +10425,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     w[21] -= off[58] * w[32];
     w[26] -= off[59] * w[32];
 }
-static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[16]; w[16] = acc * (1.0 / A[28]); }
     { double acc = w[17]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
     { double acc = w[18]; acc -= A[60] * w[16]; acc -= A[61] * w[17]; w[18] = acc * (1.0 / A[62]); }
@@ -10600,22 +10457,7 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     { double acc = w[18]; acc -= A[63] * w[19]; acc -= A[64] * w[20]; acc -= A[65] * w[21]; acc -= A[66] * w[22]; acc -= A[67] * w[23]; acc -= A[68] * w[24]; acc -= A[69] * w[25]; acc -= A[70] * w[26]; acc -= A[71] * w[27]; acc -= A[72] * w[28]; acc -= A[73] * w[29]; acc -= A[74] * w[30]; acc -= A[75] * w[31]; w[18] = acc; }
     { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; acc -= A[56] * w[28]; acc -= A[57] * w[29]; acc -= A[58] * w[30]; acc -= A[59] * w[31]; w[17] = acc; }
     { double acc = w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; acc -= A[33] * w[21]; acc -= A[34] * w[22]; acc -= A[35] * w[23]; acc -= A[36] * w[24]; acc -= A[37] * w[25]; acc -= A[38] * w[26]; acc -= A[39] * w[27]; acc -= A[40] * w[28]; acc -= A[41] * w[29]; acc -= A[42] * w[30]; acc -= A[43] * w[31]; w[16] = acc; }
-    { int p = 16 + piv[31]; double t = w[31]; w[31] = w[p]; w[p] = t; }
-    { int p = 16 + piv[30]; double t = w[30]; w[30] = w[p]; w[p] = t; }
-    { int p = 16 + piv[29]; double t = w[29]; w[29] = w[p]; w[p] = t; }
-    { int p = 16 + piv[28]; double t = w[28]; w[28] = w[p]; w[p] = t; }
-    { int p = 16 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 16 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 16 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 16 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 16 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 16 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 16 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 16 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 16 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 16 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 16 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 16 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { double g0 = w[16], g1 = w[17], g2 = w[18], g3 = w[19], g4 = w[20], g5 = w[21], g6 = w[22], g7 = w[23], g8 = w[24], g9 = w[25], g10 = w[26], g11 = w[27], g12 = w[28], g13 = w[29], g14 = w[30], g15 = w[31]; w[16 + perm[16]] = g0; w[16 + perm[17]] = g1; w[16 + perm[18]] = g2; w[16 + perm[19]] = g3; w[16 + perm[20]] = g4; w[16 + perm[21]] = g5; w[16 + perm[22]] = g6; w[16 + perm[23]] = g7; w[16 + perm[24]] = g8; w[16 + perm[25]] = g9; w[16 + perm[26]] = g10; w[16 + perm[27]] = g11; w[16 + perm[28]] = g12; w[16 + perm[29]] = g13; w[16 + perm[30]] = g14; w[16 + perm[31]] = g15; }
     w[3] -= off[45] * w[16];
     w[4] -= off[46] * w[16];
     w[5] -= off[47] * w[16];
@@ -10627,7 +10469,7 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     w[7] -= off[53] * w[18];
     w[9] -= off[54] * w[19];
 }
-static void solve_transposed_level_cut_5(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[27]); }
     w[2] -= off[40] * w[15];
     w[3] -= off[41] * w[15];
@@ -10689,24 +10531,20 @@ static void solve_transposed_level_cut_5(const double *restrict A, const double 
     { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
     { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
     { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
-    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4], g2 = w[5], g3 = w[6]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; w[3 + perm[5]] = g2; w[3 + perm[6]] = g3; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_level_cut(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 98; ++j) w[j] = c[col_order_level_cut[j]];
-    solve_transposed_level_cut_0(A, off, piv, w);
-    solve_transposed_level_cut_1(A, off, piv, w);
-    solve_transposed_level_cut_2(A, off, piv, w);
-    solve_transposed_level_cut_3(A, off, piv, w);
-    solve_transposed_level_cut_4(A, off, piv, w);
-    solve_transposed_level_cut_5(A, off, piv, w);
+    solve_transposed_level_cut_0(A, off, perm, w);
+    solve_transposed_level_cut_1(A, off, perm, w);
+    solve_transposed_level_cut_2(A, off, perm, w);
+    solve_transposed_level_cut_3(A, off, perm, w);
+    solve_transposed_level_cut_4(A, off, perm, w);
     for (int i = 0; i < 98; ++i) x[row_order_level_cut[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

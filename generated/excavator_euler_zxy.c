@@ -8851,9 +8851,10 @@ static const int diag_slot_digging[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 78, 16,
 static const int off_start_digging[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
 static const int off_col_digging[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_digging) */
-static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_digging) */
+static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -8893,15 +8894,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     { double acc = b[20]; acc -= off[49] * y[10]; y[21] = acc; }
     { double acc = b[21]; acc -= off[50] * y[6]; y[22] = acc; }
     { double acc = b[81]; acc -= off[51] * y[7]; acc -= off[52] * y[11]; acc -= off[53] * y[12]; y[23] = acc; }
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; }
     y[16] -= A[16] * y[15];
     y[17] -= A[17] * y[15];
     y[18] -= A[18] * y[15];
@@ -8983,14 +8976,10 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[16] *= 1.0 / A[25];
     y[15] -= A[24] * y[16];
     y[15] *= 1.0 / A[15];
-}
-static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[14]; acc -= off[54] * y[17]; acc -= off[55] * y[18]; acc -= off[56] * y[19]; y[24] = acc; }
     { double acc = b[15]; acc -= off[57] * y[17]; acc -= off[58] * y[18]; acc -= off[59] * y[19]; y[25] = acc; }
     { double acc = b[18]; acc -= off[60] * y[17]; acc -= off[61] * y[18]; y[26] = acc; }
-    { int p = 24 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 24 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 24 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
+    { double g0 = y[24 + perm[24]], g1 = y[24 + perm[25]], g2 = y[24 + perm[26]]; y[24] = g0; y[25] = g1; y[26] = g2; }
     y[25] -= A[97] * y[24];
     y[26] -= A[98] * y[24];
     y[26] -= A[101] * y[25];
@@ -9004,6 +8993,8 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[27] *= 1.0 / A[105];
     { double acc = b[32]; acc -= off[65] * y[10]; acc -= off[66] * y[15]; acc -= off[67] * y[16]; acc -= off[68] * y[22]; y[28] = acc; }
     y[28] *= 1.0 / A[106];
+}
+static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[31]; acc -= off[69] * y[9]; acc -= off[70] * y[15]; acc -= off[71] * y[16]; acc -= off[72] * y[22]; y[29] = acc; }
     y[29] *= 1.0 / A[107];
     { double acc = b[34]; acc -= off[73] * y[9]; acc -= off[74] * y[15]; acc -= off[75] * y[16]; acc -= off[76] * y[22]; y[30] = acc; }
@@ -9021,9 +9012,7 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     { double acc = b[25]; acc -= off[95] * y[3]; acc -= off[96] * y[5]; y[36] = acc; }
     { double acc = b[28]; acc -= off[97] * y[8]; acc -= off[98] * y[13]; acc -= off[99] * y[14]; acc -= off[100] * y[27]; acc -= off[101] * y[28]; acc -= off[102] * y[29]; y[37] = acc; }
     { double acc = b[29]; acc -= off[103] * y[8]; acc -= off[104] * y[13]; acc -= off[105] * y[14]; acc -= off[106] * y[27]; acc -= off[107] * y[28]; acc -= off[108] * y[29]; y[38] = acc; }
-    { int p = 36 + piv[36]; double t = y[36]; y[36] = y[p]; y[p] = t; }
-    { int p = 36 + piv[37]; double t = y[37]; y[37] = y[p]; y[p] = t; }
-    { int p = 36 + piv[38]; double t = y[38]; y[38] = y[p]; y[p] = t; }
+    { double g0 = y[36 + perm[36]], g1 = y[36 + perm[37]], g2 = y[36 + perm[38]]; y[36] = g0; y[37] = g1; y[38] = g2; }
     y[37] -= A[115] * y[36];
     y[38] -= A[116] * y[36];
     y[38] -= A[119] * y[37];
@@ -9033,8 +9022,6 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[37] *= 1.0 / A[118];
     y[36] -= A[117] * y[37];
     y[36] *= 1.0 / A[114];
-}
-static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[37]; acc -= off[109] * y[15]; acc -= off[110] * y[16]; y[39] = acc; }
     { double acc = b[38]; acc -= off[111] * y[15]; acc -= off[112] * y[16]; y[40] = acc; }
     { double acc = b[42]; acc -= off[113] * y[15]; acc -= off[114] * y[16]; y[41] = acc; }
@@ -9044,15 +9031,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[49]; acc -= off[122] * y[31]; y[45] = acc; }
     { double acc = b[50]; acc -= off[123] * y[32]; y[46] = acc; }
     { double acc = b[82]; acc -= off[124] * y[33]; acc -= off[125] * y[34]; acc -= off[126] * y[35]; y[47] = acc; }
-    { int p = 39 + piv[39]; double t = y[39]; y[39] = y[p]; y[p] = t; }
-    { int p = 39 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 39 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
-    { int p = 39 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 39 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
-    { int p = 39 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 39 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 39 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 39 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
+    { double g0 = y[39 + perm[39]], g1 = y[39 + perm[40]], g2 = y[39 + perm[41]], g3 = y[39 + perm[42]], g4 = y[39 + perm[43]], g5 = y[39 + perm[44]], g6 = y[39 + perm[45]], g7 = y[39 + perm[46]], g8 = y[39 + perm[47]]; y[39] = g0; y[40] = g1; y[41] = g2; y[42] = g3; y[43] = g4; y[44] = g5; y[45] = g6; y[46] = g7; y[47] = g8; }
     y[40] -= A[124] * y[39];
     y[41] -= A[125] * y[39];
     y[42] -= A[126] * y[39];
@@ -9137,9 +9116,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[26]; acc -= off[127] * y[36]; acc -= off[128] * y[37]; acc -= off[129] * y[38]; y[48] = acc; }
     { double acc = b[27]; acc -= off[130] * y[36]; acc -= off[131] * y[37]; acc -= off[132] * y[38]; y[49] = acc; }
     { double acc = b[30]; acc -= off[133] * y[36]; acc -= off[134] * y[37]; y[50] = acc; }
-    { int p = 48 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 48 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 48 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
+    { double g0 = y[48 + perm[48]], g1 = y[48 + perm[49]], g2 = y[48 + perm[50]]; y[48] = g0; y[49] = g1; y[50] = g2; }
     y[49] -= A[205] * y[48];
     y[50] -= A[206] * y[48];
     y[50] -= A[209] * y[49];
@@ -9149,12 +9126,12 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[49] *= 1.0 / A[208];
     y[48] -= A[207] * y[49];
     y[48] *= 1.0 / A[204];
+}
+static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[43]; acc -= off[135] * y[41]; acc -= off[136] * y[43]; acc -= off[137] * y[47]; y[51] = acc; }
     { double acc = b[44]; acc -= off[138] * y[41]; acc -= off[139] * y[43]; acc -= off[140] * y[47]; y[52] = acc; }
     { double acc = b[47]; acc -= off[141] * y[41]; acc -= off[142] * y[43]; y[53] = acc; }
-    { int p = 51 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 51 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 51 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
+    { double g0 = y[51 + perm[51]], g1 = y[51 + perm[52]], g2 = y[51 + perm[53]]; y[51] = g0; y[52] = g1; y[53] = g2; }
     y[52] -= A[214] * y[51];
     y[53] -= A[215] * y[51];
     y[53] -= A[218] * y[52];
@@ -9172,8 +9149,6 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[56] *= 1.0 / A[224];
     { double acc = b[58]; acc -= off[154] * y[32]; acc -= off[155] * y[40]; acc -= off[156] * y[44]; y[57] = acc; }
     y[57] *= 1.0 / A[225];
-}
-static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[57]; acc -= off[157] * y[31]; acc -= off[158] * y[39]; acc -= off[159] * y[40]; acc -= off[160] * y[44]; y[58] = acc; }
     y[58] *= 1.0 / A[226];
     { double acc = b[70]; acc -= off[161] * y[32]; acc -= off[162] * y[40]; acc -= off[163] * y[44]; y[59] = acc; }
@@ -9193,15 +9168,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     { double acc = b[78]; acc -= off[189] * y[58]; y[69] = acc; }
     { double acc = b[79]; acc -= off[190] * y[57]; y[70] = acc; }
     { double acc = b[83]; acc -= off[191] * y[59]; acc -= off[192] * y[60]; acc -= off[193] * y[61]; y[71] = acc; }
-    { int p = 63 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 63 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 63 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 63 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 63 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 63 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 63 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 63 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 63 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
+    { double g0 = y[63 + perm[63]], g1 = y[63 + perm[64]], g2 = y[63 + perm[65]], g3 = y[63 + perm[66]], g4 = y[63 + perm[67]], g5 = y[63 + perm[68]], g6 = y[63 + perm[69]], g7 = y[63 + perm[70]], g8 = y[63 + perm[71]]; y[63] = g0; y[64] = g1; y[65] = g2; y[66] = g3; y[67] = g4; y[68] = g5; y[69] = g6; y[70] = g7; y[71] = g8; }
     y[64] -= A[232] * y[63];
     y[65] -= A[233] * y[63];
     y[66] -= A[234] * y[63];
@@ -9284,7 +9251,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[63] -= A[240] * y[64];
     y[63] *= 1.0 / A[231];
 }
-static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[54]; acc -= off[194] * y[39]; acc -= off[195] * y[40]; y[72] = acc; }
     { double acc = b[55]; acc -= off[196] * y[39]; acc -= off[197] * y[40]; y[73] = acc; }
     { double acc = b[61]; acc -= off[198] * y[62]; acc -= off[199] * y[63]; acc -= off[200] * y[64]; acc -= off[201] * y[68]; y[74] = acc; }
@@ -9294,15 +9261,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     { double acc = b[65]; acc -= off[210] * y[55]; y[78] = acc; }
     { double acc = b[66]; acc -= off[211] * y[56]; y[79] = acc; }
     y[80] = b[67];
-    { int p = 72 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 72 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 72 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
-    { int p = 72 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 72 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 72 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 72 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 72 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 72 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
+    { double g0 = y[72 + perm[72]], g1 = y[72 + perm[73]], g2 = y[72 + perm[74]], g3 = y[72 + perm[75]], g4 = y[72 + perm[76]], g5 = y[72 + perm[77]], g6 = y[72 + perm[78]], g7 = y[72 + perm[79]], g8 = y[72 + perm[80]]; y[72] = g0; y[73] = g1; y[74] = g2; y[75] = g3; y[76] = g4; y[77] = g5; y[78] = g6; y[79] = g7; y[80] = g8; }
     y[73] -= A[313] * y[72];
     y[74] -= A[314] * y[72];
     y[75] -= A[315] * y[72];
@@ -9387,9 +9346,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     { double acc = b[72]; acc -= off[212] * y[65]; acc -= off[213] * y[67]; acc -= off[214] * y[71]; y[81] = acc; }
     { double acc = b[73]; acc -= off[215] * y[65]; acc -= off[216] * y[67]; acc -= off[217] * y[71]; y[82] = acc; }
     { double acc = b[76]; acc -= off[218] * y[65]; acc -= off[219] * y[67]; y[83] = acc; }
-    { int p = 81 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 81 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 81 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
+    { double g0 = y[81 + perm[81]], g1 = y[81 + perm[82]], g2 = y[81 + perm[83]]; y[81] = g0; y[82] = g1; y[83] = g2; }
     y[82] -= A[394] * y[81];
     y[83] -= A[395] * y[81];
     y[83] -= A[398] * y[82];
@@ -9402,41 +9359,63 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_digging_0(A, off, piv, b, y);
-    solve_digging_1(A, off, piv, b, y);
-    solve_digging_2(A, off, piv, b, y);
-    solve_digging_3(A, off, piv, b, y);
-    solve_digging_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+static void solve_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_digging_0(A, off, perm, b, y);
+    solve_digging_1(A, off, perm, b, y);
+    solve_digging_2(A, off, perm, b, y);
+    solve_digging_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[13] = y[11];
+    x[12] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[15] = y[17];
+    x[16] = y[18]; x[17] = y[19]; x[18] = y[20]; x[19] = y[21]; x[11] = y[22]; x[20] = y[23];
+    x[22] = y[24]; x[23] = y[25]; x[21] = y[26]; x[32] = y[27]; x[31] = y[28]; x[30] = y[29];
+    x[36] = y[30]; x[37] = y[31]; x[38] = y[32]; x[44] = y[33]; x[43] = y[34]; x[42] = y[35];
+    x[27] = y[36]; x[28] = y[37]; x[29] = y[38]; x[39] = y[39]; x[40] = y[40]; x[45] = y[41];
+    x[48] = y[42]; x[46] = y[43]; x[41] = y[44]; x[49] = y[45]; x[50] = y[46]; x[47] = y[47];
+    x[34] = y[48]; x[35] = y[49]; x[33] = y[50]; x[52] = y[51]; x[53] = y[52]; x[51] = y[53];
+    x[78] = y[54]; x[79] = y[55]; x[80] = y[56]; x[68] = y[57]; x[67] = y[58]; x[56] = y[59];
+    x[55] = y[60]; x[54] = y[61]; x[66] = y[62]; x[69] = y[63]; x[70] = y[64]; x[57] = y[65];
+    x[60] = y[66]; x[58] = y[67]; x[71] = y[68]; x[61] = y[69]; x[62] = y[70]; x[59] = y[71];
+    x[81] = y[72]; x[82] = y[73]; x[77] = y[74]; x[73] = y[75]; x[76] = y[76]; x[72] = y[77];
+    x[83] = y[78]; x[74] = y[79]; x[75] = y[80]; x[64] = y[81]; x[65] = y[82]; x[63] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_digging[] = {0, 24, 39, 58, 72};
+static const int solve_rows_digging[] = {0, 29, 51, 72};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_digging_0(A, off, piv, b, y);
-    if (first <= 1) solve_digging_1(A, off, piv, b, y);
-    if (first <= 2) solve_digging_2(A, off, piv, b, y);
-    if (first <= 3) solve_digging_3(A, off, piv, b, y);
-    if (first <= 4) solve_digging_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+    if (first <= 0) solve_digging_0(A, off, perm, b, y);
+    if (first <= 1) solve_digging_1(A, off, perm, b, y);
+    if (first <= 2) solve_digging_2(A, off, perm, b, y);
+    if (first <= 3) solve_digging_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[13] = y[11];
+    x[12] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[15] = y[17];
+    x[16] = y[18]; x[17] = y[19]; x[18] = y[20]; x[19] = y[21]; x[11] = y[22]; x[20] = y[23];
+    x[22] = y[24]; x[23] = y[25]; x[21] = y[26]; x[32] = y[27]; x[31] = y[28]; x[30] = y[29];
+    x[36] = y[30]; x[37] = y[31]; x[38] = y[32]; x[44] = y[33]; x[43] = y[34]; x[42] = y[35];
+    x[27] = y[36]; x[28] = y[37]; x[29] = y[38]; x[39] = y[39]; x[40] = y[40]; x[45] = y[41];
+    x[48] = y[42]; x[46] = y[43]; x[41] = y[44]; x[49] = y[45]; x[50] = y[46]; x[47] = y[47];
+    x[34] = y[48]; x[35] = y[49]; x[33] = y[50]; x[52] = y[51]; x[53] = y[52]; x[51] = y[53];
+    x[78] = y[54]; x[79] = y[55]; x[80] = y[56]; x[68] = y[57]; x[67] = y[58]; x[56] = y[59];
+    x[55] = y[60]; x[54] = y[61]; x[66] = y[62]; x[69] = y[63]; x[70] = y[64]; x[57] = y[65];
+    x[60] = y[66]; x[58] = y[67]; x[71] = y[68]; x[61] = y[69]; x[62] = y[70]; x[59] = y[71];
+    x[81] = y[72]; x[82] = y[73]; x[77] = y[74]; x[73] = y[75]; x[76] = y[76]; x[72] = y[77];
+    x[83] = y[78]; x[74] = y[79]; x[75] = y[80]; x[64] = y[81]; x[65] = y[82]; x[63] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
-static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[81]; w[81] = acc * (1.0 / A[393]); }
     { double acc = w[82]; acc -= A[396] * w[81]; w[82] = acc * (1.0 / A[397]); }
     { double acc = w[83]; acc -= A[399] * w[81]; acc -= A[400] * w[82]; w[83] = acc * (1.0 / A[401]); }
     { double acc = w[82]; acc -= A[398] * w[83]; w[82] = acc; }
     { double acc = w[81]; acc -= A[394] * w[82]; acc -= A[395] * w[83]; w[81] = acc; }
-    { int p = 81 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { double g0 = w[81], g1 = w[82], g2 = w[83]; w[81 + perm[81]] = g0; w[81 + perm[82]] = g1; w[81 + perm[83]] = g2; }
     w[65] -= off[212] * w[81];
     w[67] -= off[213] * w[81];
     w[71] -= off[214] * w[81];
@@ -9462,15 +9441,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[74]; acc -= A[333] * w[75]; acc -= A[334] * w[76]; acc -= A[335] * w[77]; acc -= A[336] * w[78]; acc -= A[337] * w[79]; acc -= A[338] * w[80]; w[74] = acc; }
     { double acc = w[73]; acc -= A[323] * w[74]; acc -= A[324] * w[75]; acc -= A[325] * w[76]; acc -= A[326] * w[77]; acc -= A[327] * w[78]; acc -= A[328] * w[79]; acc -= A[329] * w[80]; w[73] = acc; }
     { double acc = w[72]; acc -= A[313] * w[73]; acc -= A[314] * w[74]; acc -= A[315] * w[75]; acc -= A[316] * w[76]; acc -= A[317] * w[77]; acc -= A[318] * w[78]; acc -= A[319] * w[79]; acc -= A[320] * w[80]; w[72] = acc; }
-    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
-    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { double g0 = w[72], g1 = w[73], g2 = w[74], g3 = w[75], g4 = w[76], g5 = w[77], g6 = w[78], g7 = w[79], g8 = w[80]; w[72 + perm[72]] = g0; w[72 + perm[73]] = g1; w[72 + perm[74]] = g2; w[72 + perm[75]] = g3; w[72 + perm[76]] = g4; w[72 + perm[77]] = g5; w[72 + perm[78]] = g6; w[72 + perm[79]] = g7; w[72 + perm[80]] = g8; }
     w[39] -= off[194] * w[72];
     w[40] -= off[195] * w[72];
     w[39] -= off[196] * w[73];
@@ -9490,7 +9461,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     w[55] -= off[210] * w[78];
     w[56] -= off[211] * w[79];
 }
-static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[63]; w[63] = acc * (1.0 / A[231]); }
     { double acc = w[64]; acc -= A[240] * w[63]; w[64] = acc * (1.0 / A[241]); }
     { double acc = w[65]; acc -= A[249] * w[63]; acc -= A[250] * w[64]; w[65] = acc * (1.0 / A[251]); }
@@ -9508,15 +9479,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[65]; acc -= A[252] * w[66]; acc -= A[253] * w[67]; acc -= A[254] * w[68]; acc -= A[255] * w[69]; acc -= A[256] * w[70]; acc -= A[257] * w[71]; w[65] = acc; }
     { double acc = w[64]; acc -= A[242] * w[65]; acc -= A[243] * w[66]; acc -= A[244] * w[67]; acc -= A[245] * w[68]; acc -= A[246] * w[69]; acc -= A[247] * w[70]; acc -= A[248] * w[71]; w[64] = acc; }
     { double acc = w[63]; acc -= A[232] * w[64]; acc -= A[233] * w[65]; acc -= A[234] * w[66]; acc -= A[235] * w[67]; acc -= A[236] * w[68]; acc -= A[237] * w[69]; acc -= A[238] * w[70]; acc -= A[239] * w[71]; w[63] = acc; }
-    { int p = 63 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 63 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 63 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 63 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 63 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 63 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 63 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 63 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 63 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { double g0 = w[63], g1 = w[64], g2 = w[65], g3 = w[66], g4 = w[67], g5 = w[68], g6 = w[69], g7 = w[70], g8 = w[71]; w[63 + perm[63]] = g0; w[63 + perm[64]] = g1; w[63 + perm[65]] = g2; w[63 + perm[66]] = g3; w[63 + perm[67]] = g4; w[63 + perm[68]] = g5; w[63 + perm[69]] = g6; w[63 + perm[70]] = g7; w[63 + perm[71]] = g8; }
     w[39] -= off[176] * w[63];
     w[40] -= off[177] * w[63];
     w[39] -= off[178] * w[64];
@@ -9582,9 +9545,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[53]; acc -= A[219] * w[51]; acc -= A[220] * w[52]; w[53] = acc * (1.0 / A[221]); }
     { double acc = w[52]; acc -= A[218] * w[53]; w[52] = acc; }
     { double acc = w[51]; acc -= A[214] * w[52]; acc -= A[215] * w[53]; w[51] = acc; }
-    { int p = 51 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 51 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 51 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { double g0 = w[51], g1 = w[52], g2 = w[53]; w[51 + perm[51]] = g0; w[51 + perm[52]] = g1; w[51 + perm[53]] = g2; }
     w[41] -= off[135] * w[51];
     w[43] -= off[136] * w[51];
     w[47] -= off[137] * w[51];
@@ -9593,16 +9554,12 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     w[47] -= off[140] * w[52];
     w[41] -= off[141] * w[53];
     w[43] -= off[142] * w[53];
-}
-static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[48]; w[48] = acc * (1.0 / A[204]); }
     { double acc = w[49]; acc -= A[207] * w[48]; w[49] = acc * (1.0 / A[208]); }
     { double acc = w[50]; acc -= A[210] * w[48]; acc -= A[211] * w[49]; w[50] = acc * (1.0 / A[212]); }
     { double acc = w[49]; acc -= A[209] * w[50]; w[49] = acc; }
     { double acc = w[48]; acc -= A[205] * w[49]; acc -= A[206] * w[50]; w[48] = acc; }
-    { int p = 48 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { double g0 = w[48], g1 = w[49], g2 = w[50]; w[48 + perm[48]] = g0; w[48 + perm[49]] = g1; w[48 + perm[50]] = g2; }
     w[36] -= off[127] * w[48];
     w[37] -= off[128] * w[48];
     w[38] -= off[129] * w[48];
@@ -9611,6 +9568,8 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[38] -= off[132] * w[49];
     w[36] -= off[133] * w[50];
     w[37] -= off[134] * w[50];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[39]; w[39] = acc * (1.0 / A[123]); }
     { double acc = w[40]; acc -= A[132] * w[39]; w[40] = acc * (1.0 / A[133]); }
     { double acc = w[41]; acc -= A[141] * w[39]; acc -= A[142] * w[40]; w[41] = acc * (1.0 / A[143]); }
@@ -9628,15 +9587,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[41]; acc -= A[144] * w[42]; acc -= A[145] * w[43]; acc -= A[146] * w[44]; acc -= A[147] * w[45]; acc -= A[148] * w[46]; acc -= A[149] * w[47]; w[41] = acc; }
     { double acc = w[40]; acc -= A[134] * w[41]; acc -= A[135] * w[42]; acc -= A[136] * w[43]; acc -= A[137] * w[44]; acc -= A[138] * w[45]; acc -= A[139] * w[46]; acc -= A[140] * w[47]; w[40] = acc; }
     { double acc = w[39]; acc -= A[124] * w[40]; acc -= A[125] * w[41]; acc -= A[126] * w[42]; acc -= A[127] * w[43]; acc -= A[128] * w[44]; acc -= A[129] * w[45]; acc -= A[130] * w[46]; acc -= A[131] * w[47]; w[39] = acc; }
-    { int p = 39 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 39 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 39 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 39 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
-    { int p = 39 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 39 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
-    { int p = 39 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 39 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
-    { int p = 39 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
+    { double g0 = w[39], g1 = w[40], g2 = w[41], g3 = w[42], g4 = w[43], g5 = w[44], g6 = w[45], g7 = w[46], g8 = w[47]; w[39 + perm[39]] = g0; w[39 + perm[40]] = g1; w[39 + perm[41]] = g2; w[39 + perm[42]] = g3; w[39 + perm[43]] = g4; w[39 + perm[44]] = g5; w[39 + perm[45]] = g6; w[39 + perm[46]] = g7; w[39 + perm[47]] = g8; }
     w[15] -= off[109] * w[39];
     w[16] -= off[110] * w[39];
     w[15] -= off[111] * w[40];
@@ -9660,9 +9611,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[38]; acc -= A[120] * w[36]; acc -= A[121] * w[37]; w[38] = acc * (1.0 / A[122]); }
     { double acc = w[37]; acc -= A[119] * w[38]; w[37] = acc; }
     { double acc = w[36]; acc -= A[115] * w[37]; acc -= A[116] * w[38]; w[36] = acc; }
-    { int p = 36 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
-    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
-    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    { double g0 = w[36], g1 = w[37], g2 = w[38]; w[36 + perm[36]] = g0; w[36 + perm[37]] = g1; w[36 + perm[38]] = g2; }
     w[3] -= off[95] * w[36];
     w[5] -= off[96] * w[36];
     w[8] -= off[97] * w[37];
@@ -9687,8 +9636,6 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[15] -= off[88] * w[34];
     w[16] -= off[89] * w[34];
     w[22] -= off[90] * w[34];
-}
-static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[33]; w[33] = acc * (1.0 / A[111]); }
     w[6] -= off[84] * w[33];
     w[16] -= off[85] * w[33];
@@ -9726,9 +9673,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[26]; acc -= A[102] * w[24]; acc -= A[103] * w[25]; w[26] = acc * (1.0 / A[104]); }
     { double acc = w[25]; acc -= A[101] * w[26]; w[25] = acc; }
     { double acc = w[24]; acc -= A[97] * w[25]; acc -= A[98] * w[26]; w[24] = acc; }
-    { int p = 24 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 24 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 24 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { double g0 = w[24], g1 = w[25], g2 = w[26]; w[24 + perm[24]] = g0; w[24 + perm[25]] = g1; w[24 + perm[26]] = g2; }
     w[17] -= off[54] * w[24];
     w[18] -= off[55] * w[24];
     w[19] -= off[56] * w[24];
@@ -9737,6 +9682,8 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[19] -= off[59] * w[25];
     w[17] -= off[60] * w[26];
     w[18] -= off[61] * w[26];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[15]); }
     { double acc = w[16]; acc -= A[24] * w[15]; w[16] = acc * (1.0 / A[25]); }
     { double acc = w[17]; acc -= A[33] * w[15]; acc -= A[34] * w[16]; w[17] = acc * (1.0 / A[35]); }
@@ -9754,15 +9701,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[17]; acc -= A[36] * w[18]; acc -= A[37] * w[19]; acc -= A[38] * w[20]; acc -= A[39] * w[21]; acc -= A[40] * w[22]; acc -= A[41] * w[23]; w[17] = acc; }
     { double acc = w[16]; acc -= A[26] * w[17]; acc -= A[27] * w[18]; acc -= A[28] * w[19]; acc -= A[29] * w[20]; acc -= A[30] * w[21]; acc -= A[31] * w[22]; acc -= A[32] * w[23]; w[16] = acc; }
     { double acc = w[15]; acc -= A[16] * w[16]; acc -= A[17] * w[17]; acc -= A[18] * w[18]; acc -= A[19] * w[19]; acc -= A[20] * w[20]; acc -= A[21] * w[21]; acc -= A[22] * w[22]; acc -= A[23] * w[23]; w[15] = acc; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; }
     w[3] -= off[36] * w[15];
     w[5] -= off[37] * w[15];
     w[3] -= off[38] * w[16];
@@ -9791,9 +9730,6 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[3] -= off[29] * w[13];
     w[4] -= off[30] * w[13];
     w[5] -= off[31] * w[13];
-}
-static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
-    (void)piv;
     { double acc = w[12]; w[12] = acc * (1.0 / A[12]); }
     w[0] -= off[24] * w[12];
     w[3] -= off[25] * w[12];
@@ -9838,17 +9774,16 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_digging(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
-    solve_transposed_digging_0(A, off, piv, w);
-    solve_transposed_digging_1(A, off, piv, w);
-    solve_transposed_digging_2(A, off, piv, w);
-    solve_transposed_digging_3(A, off, piv, w);
-    solve_transposed_digging_4(A, off, piv, w);
+    solve_transposed_digging_0(A, off, perm, w);
+    solve_transposed_digging_1(A, off, perm, w);
+    solve_transposed_digging_2(A, off, perm, w);
+    solve_transposed_digging_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging[] = {0, 0, 2, 3};
+static const int input_pieces_digging[] = {0, 0, 1, 2};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -9886,10 +9821,11 @@ static const int diag_slot_level_cut[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 28, 54, 1
 static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 45, 49, 53, 56, 60, 64, 68, 72, 76, 79, 82, 86, 90, 93, 96, 100, 104, 107, 109, 115, 121, 123, 129, 135, 139, 143, 147, 151, 154, 157, 159, 162, 165, 167, 169, 175, 181, 185, 188, 191, 193, 195, 197, 199, 201, 203, 205, 208, 212, 216, 218, 224, 230, 233, 236, 238};
 static const int off_col_level_cut[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 9, 6, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 6, 16, 18, 20, 21, 22, 17, 19, 20, 21, 17, 19, 20, 21, 20, 21, 22, 24, 26, 27, 23, 24, 25, 27, 17, 19, 20, 21, 20, 21, 22, 3, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 46, 47, 48, 46, 47, 48, 46, 47, 49, 50, 51, 49, 50, 51, 49, 50, 15, 16, 35, 36, 37, 38, 39, 52, 35, 36, 37, 38, 39, 52, 23, 24, 27, 53, 62, 63, 64, 62, 63, 64, 62, 63, 19, 20, 19, 20, 40, 43, 54, 65, 41, 42, 23, 24, 41, 70, 72, 54, 69, 70, 72, 40, 69, 70, 72, 19, 20, 44, 45, 55, 75, 76, 77, 44, 45, 55, 75, 76, 77, 78, 79, 80, 78, 79, 80, 78, 79};
 static const int off_value_level_cut[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 30, 32, 33, 31, 35, 37, 38, 36, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 162, 172, 92, 93, 94, 87, 88, 89, 90, 82, 83, 84, 85, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 167, 168, 169, 170, 186, 187, 188, 189, 191, 192, 193, 194, 196, 197, 198, 249, 250, 248, 238, 239, 240, 241, 276, 277, 278, 279, 287, 288, 286, 334, 333, 335, 324, 325, 323, 326, 341, 342, 343, 344, 352, 353, 351, 45, 44, 62, 60, 61, 67, 66, 65, 70, 68, 69, 76, 75, 74, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 244, 245, 246, 243, 258, 259, 260, 257, 282, 283, 284, 281, 347, 348, 349, 346, 49, 50, 51, 54, 55, 56, 77, 78, 115, 116, 117, 120, 121, 122, 143, 144, 200, 201, 216, 217, 218, 223, 221, 222, 224, 225, 226, 232, 230, 231, 329, 330, 331, 328, 205, 206, 207, 210, 211, 212, 233, 234, 290, 291, 295, 296, 300, 304, 308, 312, 316, 319, 339, 340, 404, 405, 406, 399, 400, 401, 402, 394, 395, 396, 397, 355, 356, 371, 373, 372, 378, 377, 376, 379, 381, 380, 387, 386, 385, 360, 361, 362, 365, 366, 367, 388, 389};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_level_cut) */
-static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
-    (void)piv;
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_level_cut) */
+static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
+    (void)perm;
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -9921,7 +9857,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     { double acc = b[23]; acc -= off[32] * y[1]; acc -= off[33] * y[3]; acc -= off[34] * y[4]; acc -= off[35] * y[5]; y[14] = acc; }
     y[14] *= 1.0 / A[14];
 }
-static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[36] * y[3]; acc -= off[37] * y[5]; y[15] = acc; }
     { double acc = b[9]; acc -= off[38] * y[3]; acc -= off[39] * y[5]; y[16] = acc; }
     { double acc = b[34]; acc -= off[40] * y[9]; y[17] = acc; }
@@ -9935,19 +9871,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[25] = b[81];
     y[26] = b[82];
     y[27] = b[83];
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 15 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 15 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 15 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 15 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]], g9 = y[15 + perm[24]], g10 = y[15 + perm[25]], g11 = y[15 + perm[26]], g12 = y[15 + perm[27]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; y[24] = g9; y[25] = g10; y[26] = g11; y[27] = g12; }
     y[16] -= A[16] * y[15];
     y[17] -= A[17] * y[15];
     y[18] -= A[18] * y[15];
@@ -10119,8 +10043,6 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[15] *= 1.0 / A[15];
     { double acc = b[21]; acc -= off[42] * y[6]; acc -= off[43] * y[16]; acc -= off[44] * y[18]; y[28] = acc; }
     y[28] *= 1.0 / A[184];
-}
-static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[20]; acc -= off[45] * y[10]; acc -= off[46] * y[15]; acc -= off[47] * y[16]; acc -= off[48] * y[18]; y[29] = acc; }
     y[29] *= 1.0 / A[185];
     { double acc = b[19]; acc -= off[49] * y[9]; acc -= off[50] * y[15]; acc -= off[51] * y[16]; acc -= off[52] * y[18]; y[30] = acc; }
@@ -10131,6 +10053,8 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[32] *= 1.0 / A[188];
     { double acc = b[31]; acc -= off[60] * y[9]; acc -= off[61] * y[15]; acc -= off[62] * y[16]; acc -= off[63] * y[18]; y[33] = acc; }
     y[33] *= 1.0 / A[189];
+}
+static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[35]; acc -= off[64] * y[10]; acc -= off[65] * y[15]; acc -= off[66] * y[16]; acc -= off[67] * y[18]; y[34] = acc; }
     y[34] *= 1.0 / A[190];
     { double acc = b[39]; acc -= off[68] * y[9]; acc -= off[69] * y[15]; acc -= off[70] * y[16]; acc -= off[71] * y[18]; y[35] = acc; }
@@ -10158,9 +10082,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     { double acc = b[13]; acc -= off[107] * y[3]; acc -= off[108] * y[5]; y[46] = acc; }
     { double acc = b[16]; acc -= off[109] * y[7]; acc -= off[110] * y[11]; acc -= off[111] * y[12]; acc -= off[112] * y[28]; acc -= off[113] * y[29]; acc -= off[114] * y[30]; y[47] = acc; }
     { double acc = b[17]; acc -= off[115] * y[7]; acc -= off[116] * y[11]; acc -= off[117] * y[12]; acc -= off[118] * y[28]; acc -= off[119] * y[29]; acc -= off[120] * y[30]; y[48] = acc; }
-    { int p = 46 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 46 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
-    { int p = 46 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
+    { double g0 = y[46 + perm[46]], g1 = y[46 + perm[47]], g2 = y[46 + perm[48]]; y[46] = g0; y[47] = g1; y[48] = g2; }
     y[47] -= A[203] * y[46];
     y[48] -= A[204] * y[46];
     y[48] -= A[207] * y[47];
@@ -10173,9 +10095,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     { double acc = b[25]; acc -= off[121] * y[3]; acc -= off[122] * y[5]; y[49] = acc; }
     { double acc = b[28]; acc -= off[123] * y[8]; acc -= off[124] * y[13]; acc -= off[125] * y[14]; acc -= off[126] * y[31]; acc -= off[127] * y[32]; acc -= off[128] * y[33]; y[50] = acc; }
     { double acc = b[29]; acc -= off[129] * y[8]; acc -= off[130] * y[13]; acc -= off[131] * y[14]; acc -= off[132] * y[31]; acc -= off[133] * y[32]; acc -= off[134] * y[33]; y[51] = acc; }
-    { int p = 49 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 49 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 49 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
+    { double g0 = y[49 + perm[49]], g1 = y[49 + perm[50]], g2 = y[49 + perm[51]]; y[49] = g0; y[50] = g1; y[51] = g2; }
     y[50] -= A[212] * y[49];
     y[51] -= A[213] * y[49];
     y[51] -= A[216] * y[50];
@@ -10193,14 +10113,10 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[54] *= 1.0 / A[222];
     { double acc = b[69]; acc -= off[147] * y[19]; acc -= off[148] * y[20]; acc -= off[149] * y[21]; acc -= off[150] * y[34]; y[55] = acc; }
     y[55] *= 1.0 / A[223];
-}
-static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[14]; acc -= off[151] * y[46]; acc -= off[152] * y[47]; acc -= off[153] * y[48]; y[56] = acc; }
     { double acc = b[15]; acc -= off[154] * y[46]; acc -= off[155] * y[47]; acc -= off[156] * y[48]; y[57] = acc; }
     { double acc = b[18]; acc -= off[157] * y[46]; acc -= off[158] * y[47]; y[58] = acc; }
-    { int p = 56 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 56 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
-    { int p = 56 + piv[58]; double t = y[58]; y[58] = y[p]; y[p] = t; }
+    { double g0 = y[56 + perm[56]], g1 = y[56 + perm[57]], g2 = y[56 + perm[58]]; y[56] = g0; y[57] = g1; y[58] = g2; }
     y[57] -= A[225] * y[56];
     y[58] -= A[226] * y[56];
     y[58] -= A[229] * y[57];
@@ -10213,9 +10129,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[26]; acc -= off[159] * y[49]; acc -= off[160] * y[50]; acc -= off[161] * y[51]; y[59] = acc; }
     { double acc = b[27]; acc -= off[162] * y[49]; acc -= off[163] * y[50]; acc -= off[164] * y[51]; y[60] = acc; }
     { double acc = b[30]; acc -= off[165] * y[49]; acc -= off[166] * y[50]; y[61] = acc; }
-    { int p = 59 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 59 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
-    { int p = 59 + piv[61]; double t = y[61]; y[61] = y[p]; y[p] = t; }
+    { double g0 = y[59 + perm[59]], g1 = y[59 + perm[60]], g2 = y[59 + perm[61]]; y[59] = g0; y[60] = g1; y[61] = g2; }
     y[60] -= A[234] * y[59];
     y[61] -= A[235] * y[59];
     y[61] -= A[238] * y[60];
@@ -10225,12 +10139,12 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[60] *= 1.0 / A[237];
     y[59] -= A[236] * y[60];
     y[59] *= 1.0 / A[233];
+}
+static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[42]; acc -= off[167] * y[15]; acc -= off[168] * y[16]; y[62] = acc; }
     { double acc = b[45]; acc -= off[169] * y[35]; acc -= off[170] * y[36]; acc -= off[171] * y[37]; acc -= off[172] * y[38]; acc -= off[173] * y[39]; acc -= off[174] * y[52]; y[63] = acc; }
     { double acc = b[46]; acc -= off[175] * y[35]; acc -= off[176] * y[36]; acc -= off[177] * y[37]; acc -= off[178] * y[38]; acc -= off[179] * y[39]; acc -= off[180] * y[52]; y[64] = acc; }
-    { int p = 62 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 62 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 62 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
+    { double g0 = y[62 + perm[62]], g1 = y[62 + perm[63]], g2 = y[62 + perm[64]]; y[62] = g0; y[63] = g1; y[64] = g2; }
     y[63] -= A[243] * y[62];
     y[64] -= A[244] * y[62];
     y[64] -= A[247] * y[63];
@@ -10245,9 +10159,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[43]; acc -= off[185] * y[62]; acc -= off[186] * y[63]; acc -= off[187] * y[64]; y[66] = acc; }
     { double acc = b[44]; acc -= off[188] * y[62]; acc -= off[189] * y[63]; acc -= off[190] * y[64]; y[67] = acc; }
     { double acc = b[47]; acc -= off[191] * y[62]; acc -= off[192] * y[63]; y[68] = acc; }
-    { int p = 66 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 66 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 66 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
+    { double g0 = y[66 + perm[66]], g1 = y[66 + perm[67]], g2 = y[66 + perm[68]]; y[66] = g0; y[67] = g1; y[68] = g2; }
     y[67] -= A[253] * y[66];
     y[68] -= A[254] * y[66];
     y[68] -= A[257] * y[67];
@@ -10263,12 +10175,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[62]; acc -= off[199] * y[54]; acc -= off[200] * y[65]; y[72] = acc; }
     { double acc = b[63]; acc -= off[201] * y[41]; acc -= off[202] * y[42]; y[73] = acc; }
     { double acc = b[67]; acc -= off[203] * y[23]; acc -= off[204] * y[24]; y[74] = acc; }
-    { int p = 69 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 69 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 69 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
-    { int p = 69 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 69 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 69 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
+    { double g0 = y[69 + perm[69]], g1 = y[69 + perm[70]], g2 = y[69 + perm[71]], g3 = y[69 + perm[72]], g4 = y[69 + perm[73]], g5 = y[69 + perm[74]]; y[69] = g0; y[70] = g1; y[71] = g2; y[72] = g3; y[73] = g4; y[74] = g5; }
     y[70] -= A[262] * y[69];
     y[71] -= A[263] * y[69];
     y[72] -= A[264] * y[69];
@@ -10309,16 +10216,12 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[75] *= 1.0 / A[297];
     { double acc = b[78]; acc -= off[208] * y[54]; acc -= off[209] * y[69]; acc -= off[210] * y[70]; acc -= off[211] * y[72]; y[76] = acc; }
     y[76] *= 1.0 / A[298];
-}
-static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[77]; acc -= off[212] * y[40]; acc -= off[213] * y[69]; acc -= off[214] * y[70]; acc -= off[215] * y[72]; y[77] = acc; }
     y[77] *= 1.0 / A[299];
     { double acc = b[71]; acc -= off[216] * y[19]; acc -= off[217] * y[20]; y[78] = acc; }
     { double acc = b[74]; acc -= off[218] * y[44]; acc -= off[219] * y[45]; acc -= off[220] * y[55]; acc -= off[221] * y[75]; acc -= off[222] * y[76]; acc -= off[223] * y[77]; y[79] = acc; }
     { double acc = b[75]; acc -= off[224] * y[44]; acc -= off[225] * y[45]; acc -= off[226] * y[55]; acc -= off[227] * y[75]; acc -= off[228] * y[76]; acc -= off[229] * y[77]; y[80] = acc; }
-    { int p = 78 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 78 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 78 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
+    { double g0 = y[78 + perm[78]], g1 = y[78 + perm[79]], g2 = y[78 + perm[80]]; y[78] = g0; y[79] = g1; y[80] = g2; }
     y[79] -= A[301] * y[78];
     y[80] -= A[302] * y[78];
     y[80] -= A[305] * y[79];
@@ -10331,9 +10234,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     { double acc = b[72]; acc -= off[230] * y[78]; acc -= off[231] * y[79]; acc -= off[232] * y[80]; y[81] = acc; }
     { double acc = b[73]; acc -= off[233] * y[78]; acc -= off[234] * y[79]; acc -= off[235] * y[80]; y[82] = acc; }
     { double acc = b[76]; acc -= off[236] * y[78]; acc -= off[237] * y[79]; y[83] = acc; }
-    { int p = 81 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 81 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 81 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
+    { double g0 = y[81 + perm[81]], g1 = y[81 + perm[82]], g2 = y[81 + perm[83]]; y[81] = g0; y[82] = g1; y[83] = g2; }
     y[82] -= A[310] * y[81];
     y[83] -= A[311] * y[81];
     y[83] -= A[314] * y[82];
@@ -10346,41 +10247,63 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_level_cut_0(A, off, piv, b, y);
-    solve_level_cut_1(A, off, piv, b, y);
-    solve_level_cut_2(A, off, piv, b, y);
-    solve_level_cut_3(A, off, piv, b, y);
-    solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+static void solve_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_level_cut_0(A, off, perm, b, y);
+    solve_level_cut_1(A, off, perm, b, y);
+    solve_level_cut_2(A, off, perm, b, y);
+    solve_level_cut_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[12] = y[11];
+    x[13] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[36] = y[17];
+    x[11] = y[18]; x[39] = y[19]; x[40] = y[20]; x[41] = y[21]; x[38] = y[22]; x[81] = y[23];
+    x[82] = y[24]; x[78] = y[25]; x[80] = y[26]; x[83] = y[27]; x[20] = y[28]; x[19] = y[29];
+    x[18] = y[30]; x[32] = y[31]; x[31] = y[32]; x[30] = y[33]; x[37] = y[34]; x[42] = y[35];
+    x[43] = y[36]; x[44] = y[37]; x[50] = y[38]; x[48] = y[39]; x[66] = y[40]; x[68] = y[41];
+    x[74] = y[42]; x[72] = y[43]; x[54] = y[44]; x[56] = y[45]; x[15] = y[46]; x[16] = y[47];
+    x[17] = y[48]; x[27] = y[49]; x[28] = y[50]; x[29] = y[51]; x[49] = y[52]; x[79] = y[53];
+    x[67] = y[54]; x[55] = y[55]; x[22] = y[56]; x[23] = y[57]; x[21] = y[58]; x[34] = y[59];
+    x[35] = y[60]; x[33] = y[61]; x[45] = y[62]; x[46] = y[63]; x[47] = y[64]; x[73] = y[65];
+    x[52] = y[66]; x[53] = y[67]; x[51] = y[68]; x[69] = y[69]; x[70] = y[70]; x[77] = y[71];
+    x[71] = y[72]; x[76] = y[73]; x[75] = y[74]; x[62] = y[75]; x[61] = y[76]; x[60] = y[77];
+    x[57] = y[78]; x[58] = y[79]; x[59] = y[80]; x[64] = y[81]; x[65] = y[82]; x[63] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_level_cut[] = {0, 15, 29, 56, 77};
+static const int solve_rows_level_cut[] = {0, 15, 34, 62};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
-    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
-    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
-    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
-    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+    if (first <= 0) solve_level_cut_0(A, off, perm, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, perm, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, perm, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[12] = y[11];
+    x[13] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[36] = y[17];
+    x[11] = y[18]; x[39] = y[19]; x[40] = y[20]; x[41] = y[21]; x[38] = y[22]; x[81] = y[23];
+    x[82] = y[24]; x[78] = y[25]; x[80] = y[26]; x[83] = y[27]; x[20] = y[28]; x[19] = y[29];
+    x[18] = y[30]; x[32] = y[31]; x[31] = y[32]; x[30] = y[33]; x[37] = y[34]; x[42] = y[35];
+    x[43] = y[36]; x[44] = y[37]; x[50] = y[38]; x[48] = y[39]; x[66] = y[40]; x[68] = y[41];
+    x[74] = y[42]; x[72] = y[43]; x[54] = y[44]; x[56] = y[45]; x[15] = y[46]; x[16] = y[47];
+    x[17] = y[48]; x[27] = y[49]; x[28] = y[50]; x[29] = y[51]; x[49] = y[52]; x[79] = y[53];
+    x[67] = y[54]; x[55] = y[55]; x[22] = y[56]; x[23] = y[57]; x[21] = y[58]; x[34] = y[59];
+    x[35] = y[60]; x[33] = y[61]; x[45] = y[62]; x[46] = y[63]; x[47] = y[64]; x[73] = y[65];
+    x[52] = y[66]; x[53] = y[67]; x[51] = y[68]; x[69] = y[69]; x[70] = y[70]; x[77] = y[71];
+    x[71] = y[72]; x[76] = y[73]; x[75] = y[74]; x[62] = y[75]; x[61] = y[76]; x[60] = y[77];
+    x[57] = y[78]; x[58] = y[79]; x[59] = y[80]; x[64] = y[81]; x[65] = y[82]; x[63] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
-static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[81]; w[81] = acc * (1.0 / A[309]); }
     { double acc = w[82]; acc -= A[312] * w[81]; w[82] = acc * (1.0 / A[313]); }
     { double acc = w[83]; acc -= A[315] * w[81]; acc -= A[316] * w[82]; w[83] = acc * (1.0 / A[317]); }
     { double acc = w[82]; acc -= A[314] * w[83]; w[82] = acc; }
     { double acc = w[81]; acc -= A[310] * w[82]; acc -= A[311] * w[83]; w[81] = acc; }
-    { int p = 81 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { double g0 = w[81], g1 = w[82], g2 = w[83]; w[81 + perm[81]] = g0; w[81 + perm[82]] = g1; w[81 + perm[83]] = g2; }
     w[78] -= off[230] * w[81];
     w[79] -= off[231] * w[81];
     w[80] -= off[232] * w[81];
@@ -10394,9 +10317,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[80]; acc -= A[306] * w[78]; acc -= A[307] * w[79]; w[80] = acc * (1.0 / A[308]); }
     { double acc = w[79]; acc -= A[305] * w[80]; w[79] = acc; }
     { double acc = w[78]; acc -= A[301] * w[79]; acc -= A[302] * w[80]; w[78] = acc; }
-    { int p = 78 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { double g0 = w[78], g1 = w[79], g2 = w[80]; w[78 + perm[78]] = g0; w[78 + perm[79]] = g1; w[78 + perm[80]] = g2; }
     w[19] -= off[216] * w[78];
     w[20] -= off[217] * w[78];
     w[44] -= off[218] * w[79];
@@ -10436,12 +10357,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[71]; acc -= A[276] * w[72]; acc -= A[277] * w[73]; acc -= A[278] * w[74]; w[71] = acc; }
     { double acc = w[70]; acc -= A[269] * w[71]; acc -= A[270] * w[72]; acc -= A[271] * w[73]; acc -= A[272] * w[74]; w[70] = acc; }
     { double acc = w[69]; acc -= A[262] * w[70]; acc -= A[263] * w[71]; acc -= A[264] * w[72]; acc -= A[265] * w[73]; acc -= A[266] * w[74]; w[69] = acc; }
-    { int p = 69 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 69 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 69 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
-    { int p = 69 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 69 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 69 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { double g0 = w[69], g1 = w[70], g2 = w[71], g3 = w[72], g4 = w[73], g5 = w[74]; w[69 + perm[69]] = g0; w[69 + perm[70]] = g1; w[69 + perm[71]] = g2; w[69 + perm[72]] = g3; w[69 + perm[73]] = g4; w[69 + perm[74]] = g5; }
     w[19] -= off[193] * w[69];
     w[20] -= off[194] * w[69];
     w[19] -= off[195] * w[70];
@@ -10459,9 +10375,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[68]; acc -= A[258] * w[66]; acc -= A[259] * w[67]; w[68] = acc * (1.0 / A[260]); }
     { double acc = w[67]; acc -= A[257] * w[68]; w[67] = acc; }
     { double acc = w[66]; acc -= A[253] * w[67]; acc -= A[254] * w[68]; w[66] = acc; }
-    { int p = 66 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 66 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 66 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { double g0 = w[66], g1 = w[67], g2 = w[68]; w[66 + perm[66]] = g0; w[66 + perm[67]] = g1; w[66 + perm[68]] = g2; }
     w[62] -= off[185] * w[66];
     w[63] -= off[186] * w[66];
     w[64] -= off[187] * w[66];
@@ -10475,16 +10389,12 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     w[24] -= off[182] * w[65];
     w[27] -= off[183] * w[65];
     w[53] -= off[184] * w[65];
-}
-static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[62]; w[62] = acc * (1.0 / A[242]); }
     { double acc = w[63]; acc -= A[245] * w[62]; w[63] = acc * (1.0 / A[246]); }
     { double acc = w[64]; acc -= A[248] * w[62]; acc -= A[249] * w[63]; w[64] = acc * (1.0 / A[250]); }
     { double acc = w[63]; acc -= A[247] * w[64]; w[63] = acc; }
     { double acc = w[62]; acc -= A[243] * w[63]; acc -= A[244] * w[64]; w[62] = acc; }
-    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { double g0 = w[62], g1 = w[63], g2 = w[64]; w[62 + perm[62]] = g0; w[62 + perm[63]] = g1; w[62 + perm[64]] = g2; }
     w[15] -= off[167] * w[62];
     w[16] -= off[168] * w[62];
     w[35] -= off[169] * w[63];
@@ -10504,9 +10414,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[61]; acc -= A[239] * w[59]; acc -= A[240] * w[60]; w[61] = acc * (1.0 / A[241]); }
     { double acc = w[60]; acc -= A[238] * w[61]; w[60] = acc; }
     { double acc = w[59]; acc -= A[234] * w[60]; acc -= A[235] * w[61]; w[59] = acc; }
-    { int p = 59 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
-    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    { double g0 = w[59], g1 = w[60], g2 = w[61]; w[59 + perm[59]] = g0; w[59 + perm[60]] = g1; w[59 + perm[61]] = g2; }
     w[49] -= off[159] * w[59];
     w[50] -= off[160] * w[59];
     w[51] -= off[161] * w[59];
@@ -10515,14 +10423,14 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[51] -= off[164] * w[60];
     w[49] -= off[165] * w[61];
     w[50] -= off[166] * w[61];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[56]; w[56] = acc * (1.0 / A[224]); }
     { double acc = w[57]; acc -= A[227] * w[56]; w[57] = acc * (1.0 / A[228]); }
     { double acc = w[58]; acc -= A[230] * w[56]; acc -= A[231] * w[57]; w[58] = acc * (1.0 / A[232]); }
     { double acc = w[57]; acc -= A[229] * w[58]; w[57] = acc; }
     { double acc = w[56]; acc -= A[225] * w[57]; acc -= A[226] * w[58]; w[56] = acc; }
-    { int p = 56 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
-    { int p = 56 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 56 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    { double g0 = w[56], g1 = w[57], g2 = w[58]; w[56 + perm[56]] = g0; w[56 + perm[57]] = g1; w[56 + perm[58]] = g2; }
     w[46] -= off[151] * w[56];
     w[47] -= off[152] * w[56];
     w[48] -= off[153] * w[56];
@@ -10556,9 +10464,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[51]; acc -= A[217] * w[49]; acc -= A[218] * w[50]; w[51] = acc * (1.0 / A[219]); }
     { double acc = w[50]; acc -= A[216] * w[51]; w[50] = acc; }
     { double acc = w[49]; acc -= A[212] * w[50]; acc -= A[213] * w[51]; w[49] = acc; }
-    { int p = 49 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 49 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 49 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { double g0 = w[49], g1 = w[50], g2 = w[51]; w[49 + perm[49]] = g0; w[49 + perm[50]] = g1; w[49 + perm[51]] = g2; }
     w[3] -= off[121] * w[49];
     w[5] -= off[122] * w[49];
     w[8] -= off[123] * w[50];
@@ -10578,9 +10484,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[48]; acc -= A[208] * w[46]; acc -= A[209] * w[47]; w[48] = acc * (1.0 / A[210]); }
     { double acc = w[47]; acc -= A[207] * w[48]; w[47] = acc; }
     { double acc = w[46]; acc -= A[203] * w[47]; acc -= A[204] * w[48]; w[46] = acc; }
-    { int p = 46 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
-    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { double g0 = w[46], g1 = w[47], g2 = w[48]; w[46 + perm[46]] = g0; w[46 + perm[47]] = g1; w[46 + perm[48]] = g2; }
     w[3] -= off[107] * w[46];
     w[5] -= off[108] * w[46];
     w[7] -= off[109] * w[47];
@@ -10617,9 +10521,6 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[20] -= off[90] * w[41];
     w[21] -= off[91] * w[41];
     w[22] -= off[92] * w[41];
-}
-static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
-    (void)piv;
     { double acc = w[40]; w[40] = acc * (1.0 / A[196]); }
     w[17] -= off[86] * w[40];
     w[19] -= off[87] * w[40];
@@ -10682,7 +10583,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     w[16] -= off[43] * w[28];
     w[18] -= off[44] * w[28];
 }
-static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[15]); }
     { double acc = w[16]; acc -= A[28] * w[15]; w[16] = acc * (1.0 / A[29]); }
     { double acc = w[17]; acc -= A[41] * w[15]; acc -= A[42] * w[16]; w[17] = acc * (1.0 / A[43]); }
@@ -10708,28 +10609,13 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[17]; acc -= A[44] * w[18]; acc -= A[45] * w[19]; acc -= A[46] * w[20]; acc -= A[47] * w[21]; acc -= A[48] * w[22]; acc -= A[49] * w[23]; acc -= A[50] * w[24]; acc -= A[51] * w[25]; acc -= A[52] * w[26]; acc -= A[53] * w[27]; w[17] = acc; }
     { double acc = w[16]; acc -= A[30] * w[17]; acc -= A[31] * w[18]; acc -= A[32] * w[19]; acc -= A[33] * w[20]; acc -= A[34] * w[21]; acc -= A[35] * w[22]; acc -= A[36] * w[23]; acc -= A[37] * w[24]; acc -= A[38] * w[25]; acc -= A[39] * w[26]; acc -= A[40] * w[27]; w[16] = acc; }
     { double acc = w[15]; acc -= A[16] * w[16]; acc -= A[17] * w[17]; acc -= A[18] * w[18]; acc -= A[19] * w[19]; acc -= A[20] * w[20]; acc -= A[21] * w[21]; acc -= A[22] * w[22]; acc -= A[23] * w[23]; acc -= A[24] * w[24]; acc -= A[25] * w[25]; acc -= A[26] * w[26]; acc -= A[27] * w[27]; w[15] = acc; }
-    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23], g9 = w[24], g10 = w[25], g11 = w[26], g12 = w[27]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; w[15 + perm[24]] = g9; w[15 + perm[25]] = g10; w[15 + perm[26]] = g11; w[15 + perm[27]] = g12; }
     w[3] -= off[36] * w[15];
     w[5] -= off[37] * w[15];
     w[3] -= off[38] * w[16];
     w[5] -= off[39] * w[16];
     w[9] -= off[40] * w[17];
     w[6] -= off[41] * w[18];
-}
-static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
-    (void)piv;
     { double acc = w[14]; w[14] = acc * (1.0 / A[14]); }
     w[1] -= off[32] * w[14];
     w[3] -= off[33] * w[14];
@@ -10750,6 +10636,9 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     w[3] -= off[21] * w[11];
     w[4] -= off[22] * w[11];
     w[5] -= off[23] * w[11];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
+    (void)perm;
     { double acc = w[10]; w[10] = acc * (1.0 / A[10]); }
     w[1] -= off[16] * w[10];
     w[3] -= off[17] * w[10];
@@ -10784,13 +10673,12 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_level_cut(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
-    solve_transposed_level_cut_0(A, off, piv, w);
-    solve_transposed_level_cut_1(A, off, piv, w);
-    solve_transposed_level_cut_2(A, off, piv, w);
-    solve_transposed_level_cut_3(A, off, piv, w);
-    solve_transposed_level_cut_4(A, off, piv, w);
+    solve_transposed_level_cut_0(A, off, perm, w);
+    solve_transposed_level_cut_1(A, off, perm, w);
+    solve_transposed_level_cut_2(A, off, perm, w);
+    solve_transposed_level_cut_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -10872,7 +10760,7 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16,
 static const int off_col_bucket_toggle[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_toggle[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_toggle[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_toggle[] = {0, 0, 1, 2};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10911,7 +10799,7 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16,
 static const int off_col_bucket_stroke[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_stroke[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_stroke[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_stroke[] = {0, 0, 1, 2};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10950,7 +10838,7 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12
 static const int off_col_bucket_near_toggle[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_near_toggle[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_near_toggle[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_near_toggle[] = {0, 0, 1, 2};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10989,7 +10877,7 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 
 static const int off_col_digging_fast[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging_fast[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_fast[] = {0, 0, 2, 3};
+static const int input_pieces_digging_fast[] = {0, 0, 1, 2};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11028,7 +10916,7 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16,
 static const int off_col_digging_paced[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging_paced[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_paced[] = {0, 0, 2, 3};
+static const int input_pieces_digging_paced[] = {0, 0, 1, 2};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -11067,7 +10955,7 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 2
 static const int off_col_oscillation[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_oscillation[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_oscillation[] = {0, 0, 2, 3};
+static const int input_pieces_oscillation[] = {0, 0, 1, 2};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */

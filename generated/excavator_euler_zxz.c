@@ -8749,9 +8749,10 @@ static const int diag_slot_digging[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 26, 
 static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 44, 47, 50, 51, 52, 53, 56, 59, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 100, 103, 109, 112, 115, 118, 121, 124, 125, 126, 127, 130, 138, 141, 144, 148, 152, 155, 158, 162, 165, 169, 173, 177, 180, 183, 188, 191, 194, 197, 200, 203, 204, 205, 206, 209, 214, 217, 220, 224, 228, 231, 232, 233, 234, 234, 237, 240, 245};
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_digging) */
-static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_digging) */
+static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -8760,8 +8761,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -8795,15 +8795,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     { double acc = b[20]; acc -= off[51] * y[10]; y[21] = acc; }
     { double acc = b[21]; acc -= off[52] * y[6]; y[22] = acc; }
     { double acc = b[81]; acc -= off[53] * y[7]; acc -= off[54] * y[11]; acc -= off[55] * y[12]; y[23] = acc; }
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; }
     y[16] -= A[18] * y[15];
     y[17] -= A[19] * y[15];
     y[18] -= A[20] * y[15];
@@ -8885,12 +8877,9 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[16] *= 1.0 / A[27];
     y[15] -= A[26] * y[16];
     y[15] *= 1.0 / A[17];
-}
-static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[15]; acc -= off[56] * y[17]; acc -= off[57] * y[18]; acc -= off[58] * y[23]; y[24] = acc; }
     { double acc = b[18]; acc -= off[59] * y[17]; acc -= off[60] * y[18]; acc -= off[61] * y[23]; y[25] = acc; }
-    { int p = 24 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 24 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
+    { double g0 = y[24 + perm[24]], g1 = y[24 + perm[25]]; y[24] = g0; y[25] = g1; }
     y[25] -= A[99] * y[24];
     y[25] *= 1.0 / A[101];
     y[24] -= A[100] * y[25];
@@ -8901,6 +8890,8 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[27] *= 1.0 / A[103];
     { double acc = b[31]; acc -= off[69] * y[9]; acc -= off[70] * y[15]; acc -= off[71] * y[16]; acc -= off[72] * y[21]; y[28] = acc; }
     y[28] *= 1.0 / A[104];
+}
+static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[34]; acc -= off[73] * y[9]; acc -= off[74] * y[15]; acc -= off[75] * y[16]; acc -= off[76] * y[21]; y[29] = acc; }
     y[29] *= 1.0 / A[105];
     { double acc = b[35]; acc -= off[77] * y[10]; acc -= off[78] * y[15]; acc -= off[79] * y[16]; acc -= off[80] * y[21]; y[30] = acc; }
@@ -8917,14 +8908,11 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[35] *= 1.0 / A[111];
     { double acc = b[25]; acc -= off[100] * y[3]; acc -= off[101] * y[4]; acc -= off[102] * y[5]; y[36] = acc; }
     { double acc = b[29]; acc -= off[103] * y[8]; acc -= off[104] * y[13]; acc -= off[105] * y[14]; acc -= off[106] * y[26]; acc -= off[107] * y[27]; acc -= off[108] * y[28]; y[37] = acc; }
-    { int p = 36 + piv[36]; double t = y[36]; y[36] = y[p]; y[p] = t; }
-    { int p = 36 + piv[37]; double t = y[37]; y[37] = y[p]; y[p] = t; }
+    { double g0 = y[36 + perm[36]], g1 = y[36 + perm[37]]; y[36] = g0; y[37] = g1; }
     y[37] -= A[113] * y[36];
     y[37] *= 1.0 / A[115];
     y[36] -= A[114] * y[37];
     y[36] *= 1.0 / A[112];
-}
-static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[37]; acc -= off[109] * y[15]; acc -= off[110] * y[16]; acc -= off[111] * y[21]; y[38] = acc; }
     { double acc = b[38]; acc -= off[112] * y[15]; acc -= off[113] * y[16]; acc -= off[114] * y[21]; y[39] = acc; }
     { double acc = b[42]; acc -= off[115] * y[15]; acc -= off[116] * y[16]; acc -= off[117] * y[21]; y[40] = acc; }
@@ -8934,15 +8922,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[49]; acc -= off[125] * y[30]; y[44] = acc; }
     { double acc = b[50]; acc -= off[126] * y[31]; y[45] = acc; }
     { double acc = b[82]; acc -= off[127] * y[32]; acc -= off[128] * y[33]; acc -= off[129] * y[34]; y[46] = acc; }
-    { int p = 38 + piv[38]; double t = y[38]; y[38] = y[p]; y[p] = t; }
-    { int p = 38 + piv[39]; double t = y[39]; y[39] = y[p]; y[p] = t; }
-    { int p = 38 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 38 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
-    { int p = 38 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 38 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
-    { int p = 38 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 38 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 38 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
+    { double g0 = y[38 + perm[38]], g1 = y[38 + perm[39]], g2 = y[38 + perm[40]], g3 = y[38 + perm[41]], g4 = y[38 + perm[42]], g5 = y[38 + perm[43]], g6 = y[38 + perm[44]], g7 = y[38 + perm[45]], g8 = y[38 + perm[46]]; y[38] = g0; y[39] = g1; y[40] = g2; y[41] = g3; y[42] = g4; y[43] = g5; y[44] = g6; y[45] = g7; y[46] = g8; }
     y[39] -= A[117] * y[38];
     y[40] -= A[118] * y[38];
     y[41] -= A[119] * y[38];
@@ -9028,8 +9008,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[47] *= 1.0 / A[197];
     { double acc = b[44]; acc -= off[138] * y[40]; acc -= off[139] * y[42]; acc -= off[140] * y[46]; y[48] = acc; }
     { double acc = b[47]; acc -= off[141] * y[40]; acc -= off[142] * y[42]; acc -= off[143] * y[46]; y[49] = acc; }
-    { int p = 48 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 48 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
+    { double g0 = y[48 + perm[48]], g1 = y[48 + perm[49]]; y[48] = g0; y[49] = g1; }
     y[49] -= A[199] * y[48];
     y[49] *= 1.0 / A[201];
     y[48] -= A[200] * y[49];
@@ -9040,6 +9019,8 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[51] *= 1.0 / A[203];
     { double acc = b[53]; acc -= off[152] * y[31]; acc -= off[153] * y[39]; acc -= off[154] * y[43]; y[52] = acc; }
     y[52] *= 1.0 / A[204];
+}
+static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[58]; acc -= off[155] * y[31]; acc -= off[156] * y[39]; acc -= off[157] * y[43]; y[53] = acc; }
     y[53] *= 1.0 / A[205];
     { double acc = b[57]; acc -= off[158] * y[30]; acc -= off[159] * y[38]; acc -= off[160] * y[39]; acc -= off[161] * y[43]; y[54] = acc; }
@@ -9052,12 +9033,9 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[57] *= 1.0 / A[209];
     { double acc = b[56]; acc -= off[173] * y[29]; acc -= off[174] * y[38]; acc -= off[175] * y[39]; acc -= off[176] * y[43]; y[58] = acc; }
     y[58] *= 1.0 / A[210];
-}
-static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[27]; acc -= off[177] * y[36]; acc -= off[178] * y[37]; acc -= off[179] * y[47]; y[59] = acc; }
     { double acc = b[30]; acc -= off[180] * y[36]; acc -= off[181] * y[37]; acc -= off[182] * y[47]; y[60] = acc; }
-    { int p = 59 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 59 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
+    { double g0 = y[59 + perm[59]], g1 = y[59 + perm[60]]; y[59] = g0; y[60] = g1; }
     y[60] -= A[212] * y[59];
     y[60] *= 1.0 / A[214];
     y[59] -= A[213] * y[60];
@@ -9073,15 +9051,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     { double acc = b[78]; acc -= off[204] * y[54]; y[68] = acc; }
     { double acc = b[79]; acc -= off[205] * y[53]; y[69] = acc; }
     { double acc = b[83]; acc -= off[206] * y[55]; acc -= off[207] * y[56]; acc -= off[208] * y[57]; y[70] = acc; }
-    { int p = 62 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 62 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 62 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 62 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 62 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 62 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 62 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 62 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 62 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
+    { double g0 = y[62 + perm[62]], g1 = y[62 + perm[63]], g2 = y[62 + perm[64]], g3 = y[62 + perm[65]], g4 = y[62 + perm[66]], g5 = y[62 + perm[67]], g6 = y[62 + perm[68]], g7 = y[62 + perm[69]], g8 = y[62 + perm[70]]; y[62] = g0; y[63] = g1; y[64] = g2; y[65] = g3; y[66] = g4; y[67] = g5; y[68] = g6; y[69] = g7; y[70] = g8; }
     y[63] -= A[217] * y[62];
     y[64] -= A[218] * y[62];
     y[65] -= A[219] * y[62];
@@ -9166,7 +9136,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     { double acc = b[26]; acc -= off[209] * y[36]; acc -= off[210] * y[37]; acc -= off[211] * y[47]; acc -= off[212] * y[59]; acc -= off[213] * y[60]; y[71] = acc; }
     y[71] *= 1.0 / A[297];
 }
-static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[54]; acc -= off[214] * y[38]; acc -= off[215] * y[39]; acc -= off[216] * y[43]; y[72] = acc; }
     { double acc = b[55]; acc -= off[217] * y[38]; acc -= off[218] * y[39]; acc -= off[219] * y[43]; y[73] = acc; }
     { double acc = b[61]; acc -= off[220] * y[58]; acc -= off[221] * y[62]; acc -= off[222] * y[63]; acc -= off[223] * y[67]; y[74] = acc; }
@@ -9176,15 +9146,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     { double acc = b[65]; acc -= off[232] * y[51]; y[78] = acc; }
     { double acc = b[66]; acc -= off[233] * y[52]; y[79] = acc; }
     y[80] = b[67];
-    { int p = 72 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 72 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 72 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
-    { int p = 72 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 72 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 72 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 72 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 72 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 72 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
+    { double g0 = y[72 + perm[72]], g1 = y[72 + perm[73]], g2 = y[72 + perm[74]], g3 = y[72 + perm[75]], g4 = y[72 + perm[76]], g5 = y[72 + perm[77]], g6 = y[72 + perm[78]], g7 = y[72 + perm[79]], g8 = y[72 + perm[80]]; y[72] = g0; y[73] = g1; y[74] = g2; y[75] = g3; y[76] = g4; y[77] = g5; y[78] = g6; y[79] = g7; y[80] = g8; }
     y[73] -= A[299] * y[72];
     y[74] -= A[300] * y[72];
     y[75] -= A[301] * y[72];
@@ -9268,8 +9230,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     y[72] *= 1.0 / A[298];
     { double acc = b[73]; acc -= off[234] * y[64]; acc -= off[235] * y[66]; acc -= off[236] * y[70]; y[81] = acc; }
     { double acc = b[76]; acc -= off[237] * y[64]; acc -= off[238] * y[66]; acc -= off[239] * y[70]; y[82] = acc; }
-    { int p = 81 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 81 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
+    { double g0 = y[81 + perm[81]], g1 = y[81 + perm[82]]; y[81] = g0; y[82] = g1; }
     y[82] -= A[380] * y[81];
     y[82] *= 1.0 / A[382];
     y[81] -= A[381] * y[82];
@@ -9279,33 +9240,57 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_digging_0(A, off, piv, b, y);
-    solve_digging_1(A, off, piv, b, y);
-    solve_digging_2(A, off, piv, b, y);
-    solve_digging_3(A, off, piv, b, y);
-    solve_digging_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+static void solve_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_digging_0(A, off, perm, b, y);
+    solve_digging_1(A, off, perm, b, y);
+    solve_digging_2(A, off, perm, b, y);
+    solve_digging_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[13] = y[11];
+    x[12] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[15] = y[17];
+    x[16] = y[18]; x[19] = y[19]; x[18] = y[20]; x[11] = y[21]; x[20] = y[22]; x[17] = y[23];
+    x[22] = y[24]; x[21] = y[25]; x[32] = y[26]; x[31] = y[27]; x[30] = y[28]; x[36] = y[29];
+    x[37] = y[30]; x[38] = y[31]; x[44] = y[32]; x[43] = y[33]; x[42] = y[34]; x[23] = y[35];
+    x[27] = y[36]; x[28] = y[37]; x[39] = y[38]; x[40] = y[39]; x[45] = y[40]; x[48] = y[41];
+    x[46] = y[42]; x[41] = y[43]; x[49] = y[44]; x[50] = y[45]; x[47] = y[46]; x[29] = y[47];
+    x[52] = y[48]; x[51] = y[49]; x[78] = y[50]; x[79] = y[51]; x[80] = y[52]; x[68] = y[53];
+    x[67] = y[54]; x[56] = y[55]; x[55] = y[56]; x[54] = y[57]; x[66] = y[58]; x[34] = y[59];
+    x[33] = y[60]; x[53] = y[61]; x[69] = y[62]; x[70] = y[63]; x[57] = y[64]; x[60] = y[65];
+    x[58] = y[66]; x[71] = y[67]; x[61] = y[68]; x[62] = y[69]; x[59] = y[70]; x[35] = y[71];
+    x[81] = y[72]; x[82] = y[73]; x[77] = y[74]; x[73] = y[75]; x[76] = y[76]; x[72] = y[77];
+    x[83] = y[78]; x[74] = y[79]; x[75] = y[80]; x[64] = y[81]; x[63] = y[82]; x[65] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_digging[] = {0, 24, 38, 59, 72};
+static const int solve_rows_digging[] = {0, 29, 53, 72};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_digging_0(A, off, piv, b, y);
-    if (first <= 1) solve_digging_1(A, off, piv, b, y);
-    if (first <= 2) solve_digging_2(A, off, piv, b, y);
-    if (first <= 3) solve_digging_3(A, off, piv, b, y);
-    if (first <= 4) solve_digging_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+    if (first <= 0) solve_digging_0(A, off, perm, b, y);
+    if (first <= 1) solve_digging_1(A, off, perm, b, y);
+    if (first <= 2) solve_digging_2(A, off, perm, b, y);
+    if (first <= 3) solve_digging_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[13] = y[11];
+    x[12] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[15] = y[17];
+    x[16] = y[18]; x[19] = y[19]; x[18] = y[20]; x[11] = y[21]; x[20] = y[22]; x[17] = y[23];
+    x[22] = y[24]; x[21] = y[25]; x[32] = y[26]; x[31] = y[27]; x[30] = y[28]; x[36] = y[29];
+    x[37] = y[30]; x[38] = y[31]; x[44] = y[32]; x[43] = y[33]; x[42] = y[34]; x[23] = y[35];
+    x[27] = y[36]; x[28] = y[37]; x[39] = y[38]; x[40] = y[39]; x[45] = y[40]; x[48] = y[41];
+    x[46] = y[42]; x[41] = y[43]; x[49] = y[44]; x[50] = y[45]; x[47] = y[46]; x[29] = y[47];
+    x[52] = y[48]; x[51] = y[49]; x[78] = y[50]; x[79] = y[51]; x[80] = y[52]; x[68] = y[53];
+    x[67] = y[54]; x[56] = y[55]; x[55] = y[56]; x[54] = y[57]; x[66] = y[58]; x[34] = y[59];
+    x[33] = y[60]; x[53] = y[61]; x[69] = y[62]; x[70] = y[63]; x[57] = y[64]; x[60] = y[65];
+    x[58] = y[66]; x[71] = y[67]; x[61] = y[68]; x[62] = y[69]; x[59] = y[70]; x[35] = y[71];
+    x[81] = y[72]; x[82] = y[73]; x[77] = y[74]; x[73] = y[75]; x[76] = y[76]; x[72] = y[77];
+    x[83] = y[78]; x[74] = y[79]; x[75] = y[80]; x[64] = y[81]; x[63] = y[82]; x[65] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
-static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[83]; w[83] = acc * (1.0 / A[383]); }
     w[64] -= off[240] * w[83];
     w[66] -= off[241] * w[83];
@@ -9315,8 +9300,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[81]; w[81] = acc * (1.0 / A[379]); }
     { double acc = w[82]; acc -= A[381] * w[81]; w[82] = acc * (1.0 / A[382]); }
     { double acc = w[81]; acc -= A[380] * w[82]; w[81] = acc; }
-    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { double g0 = w[81], g1 = w[82]; w[81 + perm[81]] = g0; w[81 + perm[82]] = g1; }
     w[64] -= off[234] * w[81];
     w[66] -= off[235] * w[81];
     w[70] -= off[236] * w[81];
@@ -9340,15 +9324,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[74]; acc -= A[319] * w[75]; acc -= A[320] * w[76]; acc -= A[321] * w[77]; acc -= A[322] * w[78]; acc -= A[323] * w[79]; acc -= A[324] * w[80]; w[74] = acc; }
     { double acc = w[73]; acc -= A[309] * w[74]; acc -= A[310] * w[75]; acc -= A[311] * w[76]; acc -= A[312] * w[77]; acc -= A[313] * w[78]; acc -= A[314] * w[79]; acc -= A[315] * w[80]; w[73] = acc; }
     { double acc = w[72]; acc -= A[299] * w[73]; acc -= A[300] * w[74]; acc -= A[301] * w[75]; acc -= A[302] * w[76]; acc -= A[303] * w[77]; acc -= A[304] * w[78]; acc -= A[305] * w[79]; acc -= A[306] * w[80]; w[72] = acc; }
-    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
-    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { double g0 = w[72], g1 = w[73], g2 = w[74], g3 = w[75], g4 = w[76], g5 = w[77], g6 = w[78], g7 = w[79], g8 = w[80]; w[72 + perm[72]] = g0; w[72 + perm[73]] = g1; w[72 + perm[74]] = g2; w[72 + perm[75]] = g3; w[72 + perm[76]] = g4; w[72 + perm[77]] = g5; w[72 + perm[78]] = g6; w[72 + perm[79]] = g7; w[72 + perm[80]] = g8; }
     w[38] -= off[214] * w[72];
     w[39] -= off[215] * w[72];
     w[43] -= off[216] * w[72];
@@ -9376,7 +9352,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     w[59] -= off[212] * w[71];
     w[60] -= off[213] * w[71];
 }
-static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[62]; w[62] = acc * (1.0 / A[216]); }
     { double acc = w[63]; acc -= A[225] * w[62]; w[63] = acc * (1.0 / A[226]); }
     { double acc = w[64]; acc -= A[234] * w[62]; acc -= A[235] * w[63]; w[64] = acc * (1.0 / A[236]); }
@@ -9394,15 +9370,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[64]; acc -= A[237] * w[65]; acc -= A[238] * w[66]; acc -= A[239] * w[67]; acc -= A[240] * w[68]; acc -= A[241] * w[69]; acc -= A[242] * w[70]; w[64] = acc; }
     { double acc = w[63]; acc -= A[227] * w[64]; acc -= A[228] * w[65]; acc -= A[229] * w[66]; acc -= A[230] * w[67]; acc -= A[231] * w[68]; acc -= A[232] * w[69]; acc -= A[233] * w[70]; w[63] = acc; }
     { double acc = w[62]; acc -= A[217] * w[63]; acc -= A[218] * w[64]; acc -= A[219] * w[65]; acc -= A[220] * w[66]; acc -= A[221] * w[67]; acc -= A[222] * w[68]; acc -= A[223] * w[69]; acc -= A[224] * w[70]; w[62] = acc; }
-    { int p = 62 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 62 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 62 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 62 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 62 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 62 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { double g0 = w[62], g1 = w[63], g2 = w[64], g3 = w[65], g4 = w[66], g5 = w[67], g6 = w[68], g7 = w[69], g8 = w[70]; w[62 + perm[62]] = g0; w[62 + perm[63]] = g1; w[62 + perm[64]] = g2; w[62 + perm[65]] = g3; w[62 + perm[66]] = g4; w[62 + perm[67]] = g5; w[62 + perm[68]] = g6; w[62 + perm[69]] = g7; w[62 + perm[70]] = g8; }
     w[38] -= off[188] * w[62];
     w[39] -= off[189] * w[62];
     w[43] -= off[190] * w[62];
@@ -9433,8 +9401,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[59]; w[59] = acc * (1.0 / A[211]); }
     { double acc = w[60]; acc -= A[213] * w[59]; w[60] = acc * (1.0 / A[214]); }
     { double acc = w[59]; acc -= A[212] * w[60]; w[59] = acc; }
-    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    { double g0 = w[59], g1 = w[60]; w[59 + perm[59]] = g0; w[59 + perm[60]] = g1; }
     w[36] -= off[177] * w[59];
     w[37] -= off[178] * w[59];
     w[47] -= off[179] * w[59];
@@ -9483,13 +9450,10 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     w[38] -= off[145] * w[50];
     w[39] -= off[146] * w[50];
     w[43] -= off[147] * w[50];
-}
-static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[48]; w[48] = acc * (1.0 / A[198]); }
     { double acc = w[49]; acc -= A[200] * w[48]; w[49] = acc * (1.0 / A[201]); }
     { double acc = w[48]; acc -= A[199] * w[49]; w[48] = acc; }
-    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { double g0 = w[48], g1 = w[49]; w[48 + perm[48]] = g0; w[48 + perm[49]] = g1; }
     w[40] -= off[138] * w[48];
     w[42] -= off[139] * w[48];
     w[46] -= off[140] * w[48];
@@ -9505,6 +9469,8 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[28] -= off[135] * w[47];
     w[36] -= off[136] * w[47];
     w[37] -= off[137] * w[47];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[38]; w[38] = acc * (1.0 / A[116]); }
     { double acc = w[39]; acc -= A[125] * w[38]; w[39] = acc * (1.0 / A[126]); }
     { double acc = w[40]; acc -= A[134] * w[38]; acc -= A[135] * w[39]; w[40] = acc * (1.0 / A[136]); }
@@ -9522,15 +9488,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[40]; acc -= A[137] * w[41]; acc -= A[138] * w[42]; acc -= A[139] * w[43]; acc -= A[140] * w[44]; acc -= A[141] * w[45]; acc -= A[142] * w[46]; w[40] = acc; }
     { double acc = w[39]; acc -= A[127] * w[40]; acc -= A[128] * w[41]; acc -= A[129] * w[42]; acc -= A[130] * w[43]; acc -= A[131] * w[44]; acc -= A[132] * w[45]; acc -= A[133] * w[46]; w[39] = acc; }
     { double acc = w[38]; acc -= A[117] * w[39]; acc -= A[118] * w[40]; acc -= A[119] * w[41]; acc -= A[120] * w[42]; acc -= A[121] * w[43]; acc -= A[122] * w[44]; acc -= A[123] * w[45]; acc -= A[124] * w[46]; w[38] = acc; }
-    { int p = 38 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 38 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 38 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
-    { int p = 38 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 38 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
-    { int p = 38 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 38 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
-    { int p = 38 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
-    { int p = 38 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
+    { double g0 = w[38], g1 = w[39], g2 = w[40], g3 = w[41], g4 = w[42], g5 = w[43], g6 = w[44], g7 = w[45], g8 = w[46]; w[38 + perm[38]] = g0; w[38 + perm[39]] = g1; w[38 + perm[40]] = g2; w[38 + perm[41]] = g3; w[38 + perm[42]] = g4; w[38 + perm[43]] = g5; w[38 + perm[44]] = g6; w[38 + perm[45]] = g7; w[38 + perm[46]] = g8; }
     w[15] -= off[109] * w[38];
     w[16] -= off[110] * w[38];
     w[21] -= off[111] * w[38];
@@ -9555,8 +9513,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[36]; w[36] = acc * (1.0 / A[112]); }
     { double acc = w[37]; acc -= A[114] * w[36]; w[37] = acc * (1.0 / A[115]); }
     { double acc = w[36]; acc -= A[113] * w[37]; w[36] = acc; }
-    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
-    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    { double g0 = w[36], g1 = w[37]; w[36 + perm[36]] = g0; w[36 + perm[37]] = g1; }
     w[3] -= off[100] * w[36];
     w[4] -= off[101] * w[36];
     w[5] -= off[102] * w[36];
@@ -9590,8 +9547,6 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[6] -= off[81] * w[31];
     w[16] -= off[82] * w[31];
     w[21] -= off[83] * w[31];
-}
-static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[30]; w[30] = acc * (1.0 / A[106]); }
     w[10] -= off[77] * w[30];
     w[15] -= off[78] * w[30];
@@ -9619,14 +9574,15 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[24]; w[24] = acc * (1.0 / A[98]); }
     { double acc = w[25]; acc -= A[100] * w[24]; w[25] = acc * (1.0 / A[101]); }
     { double acc = w[24]; acc -= A[99] * w[25]; w[24] = acc; }
-    { int p = 24 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 24 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { double g0 = w[24], g1 = w[25]; w[24 + perm[24]] = g0; w[24 + perm[25]] = g1; }
     w[17] -= off[56] * w[24];
     w[18] -= off[57] * w[24];
     w[23] -= off[58] * w[24];
     w[17] -= off[59] * w[25];
     w[18] -= off[60] * w[25];
     w[23] -= off[61] * w[25];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
     { double acc = w[16]; acc -= A[26] * w[15]; w[16] = acc * (1.0 / A[27]); }
     { double acc = w[17]; acc -= A[35] * w[15]; acc -= A[36] * w[16]; w[17] = acc * (1.0 / A[37]); }
@@ -9644,15 +9600,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[17]; acc -= A[38] * w[18]; acc -= A[39] * w[19]; acc -= A[40] * w[20]; acc -= A[41] * w[21]; acc -= A[42] * w[22]; acc -= A[43] * w[23]; w[17] = acc; }
     { double acc = w[16]; acc -= A[28] * w[17]; acc -= A[29] * w[18]; acc -= A[30] * w[19]; acc -= A[31] * w[20]; acc -= A[32] * w[21]; acc -= A[33] * w[22]; acc -= A[34] * w[23]; w[16] = acc; }
     { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; w[15] = acc; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; }
     w[3] -= off[35] * w[15];
     w[4] -= off[36] * w[15];
     w[5] -= off[37] * w[15];
@@ -9704,8 +9652,6 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[3] -= off[12] * w[9];
     w[4] -= off[13] * w[9];
     w[5] -= off[14] * w[9];
-}
-static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
     w[2] -= off[8] * w[8];
     w[3] -= off[9] * w[8];
@@ -9724,25 +9670,23 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_digging(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
-    solve_transposed_digging_0(A, off, piv, w);
-    solve_transposed_digging_1(A, off, piv, w);
-    solve_transposed_digging_2(A, off, piv, w);
-    solve_transposed_digging_3(A, off, piv, w);
-    solve_transposed_digging_4(A, off, piv, w);
+    solve_transposed_digging_0(A, off, perm, w);
+    solve_transposed_digging_1(A, off, perm, w);
+    solve_transposed_digging_2(A, off, perm, w);
+    solve_transposed_digging_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging[] = {0, 0, 2, 3};
+static const int input_pieces_digging[] = {0, 0, 1, 2};
 static const kinegen_design design_digging = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -9780,9 +9724,10 @@ static const int diag_slot_level_cut[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 30
 static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 23, 27, 31, 35, 38, 41, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 46, 50, 54, 57, 61, 65, 69, 73, 77, 80, 83, 87, 91, 94, 97, 101, 105, 108, 111, 117, 120, 126, 130, 134, 138, 142, 150, 158, 161, 167, 171, 174, 177, 180, 183, 191, 194, 197, 199, 201, 203, 206, 211, 216, 219, 222, 225, 229, 233, 238, 241, 247, 255, 258, 261, 266};
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 6, 16, 20, 18, 22, 24, 17, 19, 22, 24, 17, 19, 22, 24, 18, 22, 24, 25, 26, 27, 21, 23, 25, 27, 17, 19, 22, 24, 18, 22, 24, 3, 4, 5, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 7, 11, 12, 28, 29, 30, 46, 47, 8, 13, 14, 31, 32, 33, 48, 49, 15, 16, 20, 35, 36, 37, 38, 39, 50, 23, 25, 27, 51, 46, 47, 54, 46, 47, 54, 48, 49, 55, 48, 49, 55, 35, 36, 37, 38, 39, 50, 56, 57, 19, 22, 24, 19, 22, 24, 40, 43, 52, 58, 41, 42, 23, 25, 27, 46, 47, 54, 59, 60, 48, 49, 55, 61, 62, 56, 57, 63, 56, 57, 63, 41, 65, 67, 52, 64, 65, 67, 40, 64, 65, 67, 56, 57, 63, 72, 73, 19, 22, 24, 44, 45, 53, 74, 75, 76, 44, 45, 53, 74, 75, 76, 78, 79, 78, 79, 80, 78, 79, 80, 78, 79, 80, 81, 82};
 static const int off_value_level_cut[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 32, 34, 35, 33, 37, 39, 40, 38, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 164, 174, 94, 95, 96, 89, 90, 91, 92, 84, 85, 86, 87, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 169, 170, 171, 172, 189, 190, 191, 192, 194, 195, 196, 197, 199, 200, 201, 251, 252, 253, 241, 242, 243, 244, 280, 281, 282, 283, 290, 291, 292, 340, 338, 339, 328, 329, 331, 330, 347, 348, 349, 350, 357, 358, 359, 47, 48, 46, 73, 71, 72, 78, 77, 76, 113, 114, 112, 139, 137, 138, 144, 143, 142, 247, 248, 249, 246, 261, 262, 263, 260, 286, 287, 288, 285, 353, 354, 355, 352, 64, 62, 63, 70, 69, 68, 65, 66, 130, 128, 129, 136, 135, 134, 131, 132, 203, 204, 205, 228, 229, 230, 235, 233, 234, 334, 336, 335, 333, 57, 58, 59, 79, 80, 81, 123, 124, 125, 145, 146, 147, 219, 220, 221, 227, 225, 226, 222, 223, 294, 295, 296, 299, 300, 301, 305, 309, 313, 317, 321, 324, 344, 346, 345, 51, 52, 53, 55, 54, 117, 118, 119, 121, 120, 214, 215, 216, 236, 237, 238, 410, 411, 412, 405, 406, 407, 408, 400, 401, 402, 403, 208, 209, 210, 212, 211, 361, 362, 363, 386, 388, 387, 393, 392, 391, 377, 379, 378, 385, 384, 383, 380, 381, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_level_cut) */
-static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_level_cut) */
+static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -9791,8 +9736,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -9818,7 +9762,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     { double acc = b[23]; acc -= off[31] * y[1]; acc -= off[32] * y[3]; acc -= off[33] * y[4]; acc -= off[34] * y[5]; y[14] = acc; }
     y[14] *= 1.0 / A[16];
 }
-static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[35] * y[3]; acc -= off[36] * y[4]; acc -= off[37] * y[5]; y[15] = acc; }
     { double acc = b[9]; acc -= off[38] * y[3]; acc -= off[39] * y[4]; acc -= off[40] * y[5]; y[16] = acc; }
     { double acc = b[34]; acc -= off[41] * y[9]; y[17] = acc; }
@@ -9832,19 +9776,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[25] = b[81];
     y[26] = b[82];
     y[27] = b[83];
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 15 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 15 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 15 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 15 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]], g9 = y[15 + perm[24]], g10 = y[15 + perm[25]], g11 = y[15 + perm[26]], g12 = y[15 + perm[27]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; y[24] = g9; y[25] = g10; y[26] = g11; y[27] = g12; }
     y[16] -= A[18] * y[15];
     y[17] -= A[19] * y[15];
     y[18] -= A[20] * y[15];
@@ -10014,8 +9946,6 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[16] *= 1.0 / A[31];
     y[15] -= A[30] * y[16];
     y[15] *= 1.0 / A[17];
-}
-static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[21]; acc -= off[43] * y[6]; acc -= off[44] * y[16]; acc -= off[45] * y[20]; y[28] = acc; }
     y[28] *= 1.0 / A[186];
     { double acc = b[20]; acc -= off[46] * y[10]; acc -= off[47] * y[15]; acc -= off[48] * y[16]; acc -= off[49] * y[20]; y[29] = acc; }
@@ -10028,6 +9958,8 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[32] *= 1.0 / A[190];
     { double acc = b[31]; acc -= off[61] * y[9]; acc -= off[62] * y[15]; acc -= off[63] * y[16]; acc -= off[64] * y[20]; y[33] = acc; }
     y[33] *= 1.0 / A[191];
+}
+static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[35]; acc -= off[65] * y[10]; acc -= off[66] * y[15]; acc -= off[67] * y[16]; acc -= off[68] * y[20]; y[34] = acc; }
     y[34] *= 1.0 / A[192];
     { double acc = b[39]; acc -= off[69] * y[9]; acc -= off[70] * y[15]; acc -= off[71] * y[16]; acc -= off[72] * y[20]; y[35] = acc; }
@@ -10054,16 +9986,14 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[45] *= 1.0 / A[203];
     { double acc = b[13]; acc -= off[108] * y[3]; acc -= off[109] * y[4]; acc -= off[110] * y[5]; y[46] = acc; }
     { double acc = b[17]; acc -= off[111] * y[7]; acc -= off[112] * y[11]; acc -= off[113] * y[12]; acc -= off[114] * y[28]; acc -= off[115] * y[29]; acc -= off[116] * y[30]; y[47] = acc; }
-    { int p = 46 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 46 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
+    { double g0 = y[46 + perm[46]], g1 = y[46 + perm[47]]; y[46] = g0; y[47] = g1; }
     y[47] -= A[205] * y[46];
     y[47] *= 1.0 / A[207];
     y[46] -= A[206] * y[47];
     y[46] *= 1.0 / A[204];
     { double acc = b[25]; acc -= off[117] * y[3]; acc -= off[118] * y[4]; acc -= off[119] * y[5]; y[48] = acc; }
     { double acc = b[29]; acc -= off[120] * y[8]; acc -= off[121] * y[13]; acc -= off[122] * y[14]; acc -= off[123] * y[31]; acc -= off[124] * y[32]; acc -= off[125] * y[33]; y[49] = acc; }
-    { int p = 48 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 48 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
+    { double g0 = y[48 + perm[48]], g1 = y[48 + perm[49]]; y[48] = g0; y[49] = g1; }
     y[49] -= A[209] * y[48];
     y[49] *= 1.0 / A[211];
     y[48] -= A[210] * y[49];
@@ -10082,46 +10012,38 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[55] *= 1.0 / A[217];
     { double acc = b[42]; acc -= off[158] * y[15]; acc -= off[159] * y[16]; acc -= off[160] * y[20]; y[56] = acc; }
     { double acc = b[46]; acc -= off[161] * y[35]; acc -= off[162] * y[36]; acc -= off[163] * y[37]; acc -= off[164] * y[38]; acc -= off[165] * y[39]; acc -= off[166] * y[50]; y[57] = acc; }
-    { int p = 56 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 56 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
+    { double g0 = y[56 + perm[56]], g1 = y[56 + perm[57]]; y[56] = g0; y[57] = g1; }
     y[57] -= A[219] * y[56];
     y[57] *= 1.0 / A[221];
     y[56] -= A[220] * y[57];
     y[56] *= 1.0 / A[218];
-}
-static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[65]; acc -= off[167] * y[23]; acc -= off[168] * y[25]; acc -= off[169] * y[27]; acc -= off[170] * y[51]; y[58] = acc; }
     y[58] *= 1.0 / A[222];
     { double acc = b[15]; acc -= off[171] * y[46]; acc -= off[172] * y[47]; acc -= off[173] * y[54]; y[59] = acc; }
     { double acc = b[18]; acc -= off[174] * y[46]; acc -= off[175] * y[47]; acc -= off[176] * y[54]; y[60] = acc; }
-    { int p = 59 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 59 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
+    { double g0 = y[59 + perm[59]], g1 = y[59 + perm[60]]; y[59] = g0; y[60] = g1; }
     y[60] -= A[224] * y[59];
     y[60] *= 1.0 / A[226];
     y[59] -= A[225] * y[60];
     y[59] *= 1.0 / A[223];
     { double acc = b[27]; acc -= off[177] * y[48]; acc -= off[178] * y[49]; acc -= off[179] * y[55]; y[61] = acc; }
     { double acc = b[30]; acc -= off[180] * y[48]; acc -= off[181] * y[49]; acc -= off[182] * y[55]; y[62] = acc; }
-    { int p = 61 + piv[61]; double t = y[61]; y[61] = y[p]; y[p] = t; }
-    { int p = 61 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
+    { double g0 = y[61 + perm[61]], g1 = y[61 + perm[62]]; y[61] = g0; y[62] = g1; }
     y[62] -= A[228] * y[61];
     y[62] *= 1.0 / A[230];
     y[61] -= A[229] * y[62];
     y[61] *= 1.0 / A[227];
     { double acc = b[45]; acc -= off[183] * y[35]; acc -= off[184] * y[36]; acc -= off[185] * y[37]; acc -= off[186] * y[38]; acc -= off[187] * y[39]; acc -= off[188] * y[50]; acc -= off[189] * y[56]; acc -= off[190] * y[57]; y[63] = acc; }
     y[63] *= 1.0 / A[231];
+}
+static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[59]; acc -= off[191] * y[19]; acc -= off[192] * y[22]; acc -= off[193] * y[24]; y[64] = acc; }
     { double acc = b[60]; acc -= off[194] * y[19]; acc -= off[195] * y[22]; acc -= off[196] * y[24]; y[65] = acc; }
     { double acc = b[61]; acc -= off[197] * y[40]; acc -= off[198] * y[43]; y[66] = acc; }
     { double acc = b[62]; acc -= off[199] * y[52]; acc -= off[200] * y[58]; y[67] = acc; }
     { double acc = b[63]; acc -= off[201] * y[41]; acc -= off[202] * y[42]; y[68] = acc; }
     { double acc = b[67]; acc -= off[203] * y[23]; acc -= off[204] * y[25]; acc -= off[205] * y[27]; y[69] = acc; }
-    { int p = 64 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 64 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 64 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 64 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 64 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 64 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
+    { double g0 = y[64 + perm[64]], g1 = y[64 + perm[65]], g2 = y[64 + perm[66]], g3 = y[64 + perm[67]], g4 = y[64 + perm[68]], g5 = y[64 + perm[69]]; y[64] = g0; y[65] = g1; y[66] = g2; y[67] = g3; y[68] = g4; y[69] = g5; }
     y[65] -= A[233] * y[64];
     y[66] -= A[234] * y[64];
     y[67] -= A[235] * y[64];
@@ -10164,8 +10086,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[71] *= 1.0 / A[269];
     { double acc = b[44]; acc -= off[216] * y[56]; acc -= off[217] * y[57]; acc -= off[218] * y[63]; y[72] = acc; }
     { double acc = b[47]; acc -= off[219] * y[56]; acc -= off[220] * y[57]; acc -= off[221] * y[63]; y[73] = acc; }
-    { int p = 72 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 72 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
+    { double g0 = y[72 + perm[72]], g1 = y[72 + perm[73]]; y[72] = g0; y[73] = g1; }
     y[73] -= A[271] * y[72];
     y[73] *= 1.0 / A[273];
     y[72] -= A[272] * y[73];
@@ -10180,20 +10101,16 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[77] *= 1.0 / A[277];
     { double acc = b[71]; acc -= off[238] * y[19]; acc -= off[239] * y[22]; acc -= off[240] * y[24]; y[78] = acc; }
     { double acc = b[75]; acc -= off[241] * y[44]; acc -= off[242] * y[45]; acc -= off[243] * y[53]; acc -= off[244] * y[74]; acc -= off[245] * y[75]; acc -= off[246] * y[76]; y[79] = acc; }
-    { int p = 78 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 78 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
+    { double g0 = y[78 + perm[78]], g1 = y[78 + perm[79]]; y[78] = g0; y[79] = g1; }
     y[79] -= A[279] * y[78];
     y[79] *= 1.0 / A[281];
     y[78] -= A[280] * y[79];
     y[78] *= 1.0 / A[278];
-}
-static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[74]; acc -= off[247] * y[44]; acc -= off[248] * y[45]; acc -= off[249] * y[53]; acc -= off[250] * y[74]; acc -= off[251] * y[75]; acc -= off[252] * y[76]; acc -= off[253] * y[78]; acc -= off[254] * y[79]; y[80] = acc; }
     y[80] *= 1.0 / A[282];
     { double acc = b[73]; acc -= off[255] * y[78]; acc -= off[256] * y[79]; acc -= off[257] * y[80]; y[81] = acc; }
     { double acc = b[76]; acc -= off[258] * y[78]; acc -= off[259] * y[79]; acc -= off[260] * y[80]; y[82] = acc; }
-    { int p = 81 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 81 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
+    { double g0 = y[81 + perm[81]], g1 = y[81 + perm[82]]; y[81] = g0; y[82] = g1; }
     y[82] -= A[284] * y[81];
     y[82] *= 1.0 / A[286];
     y[81] -= A[285] * y[82];
@@ -10203,33 +10120,57 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_level_cut_0(A, off, piv, b, y);
-    solve_level_cut_1(A, off, piv, b, y);
-    solve_level_cut_2(A, off, piv, b, y);
-    solve_level_cut_3(A, off, piv, b, y);
-    solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+static void solve_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_level_cut_0(A, off, perm, b, y);
+    solve_level_cut_1(A, off, perm, b, y);
+    solve_level_cut_2(A, off, perm, b, y);
+    solve_level_cut_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[12] = y[11];
+    x[13] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[36] = y[17];
+    x[38] = y[18]; x[39] = y[19]; x[11] = y[20]; x[78] = y[21]; x[40] = y[22]; x[81] = y[23];
+    x[41] = y[24]; x[83] = y[25]; x[80] = y[26]; x[82] = y[27]; x[20] = y[28]; x[19] = y[29];
+    x[18] = y[30]; x[32] = y[31]; x[31] = y[32]; x[30] = y[33]; x[37] = y[34]; x[42] = y[35];
+    x[43] = y[36]; x[44] = y[37]; x[50] = y[38]; x[48] = y[39]; x[66] = y[40]; x[68] = y[41];
+    x[74] = y[42]; x[72] = y[43]; x[54] = y[44]; x[56] = y[45]; x[15] = y[46]; x[16] = y[47];
+    x[27] = y[48]; x[28] = y[49]; x[49] = y[50]; x[79] = y[51]; x[67] = y[52]; x[55] = y[53];
+    x[17] = y[54]; x[29] = y[55]; x[45] = y[56]; x[46] = y[57]; x[73] = y[58]; x[22] = y[59];
+    x[21] = y[60]; x[34] = y[61]; x[33] = y[62]; x[47] = y[63]; x[69] = y[64]; x[70] = y[65];
+    x[77] = y[66]; x[71] = y[67]; x[76] = y[68]; x[75] = y[69]; x[23] = y[70]; x[35] = y[71];
+    x[52] = y[72]; x[51] = y[73]; x[62] = y[74]; x[61] = y[75]; x[60] = y[76]; x[53] = y[77];
+    x[57] = y[78]; x[58] = y[79]; x[59] = y[80]; x[64] = y[81]; x[63] = y[82]; x[65] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_level_cut[] = {0, 15, 28, 58, 80};
+static const int solve_rows_level_cut[] = {0, 15, 34, 64};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
-    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
-    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
-    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
-    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+    if (first <= 0) solve_level_cut_0(A, off, perm, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, perm, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, perm, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[4] = y[3]; x[5] = y[4]; x[3] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[12] = y[11];
+    x[13] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[36] = y[17];
+    x[38] = y[18]; x[39] = y[19]; x[11] = y[20]; x[78] = y[21]; x[40] = y[22]; x[81] = y[23];
+    x[41] = y[24]; x[83] = y[25]; x[80] = y[26]; x[82] = y[27]; x[20] = y[28]; x[19] = y[29];
+    x[18] = y[30]; x[32] = y[31]; x[31] = y[32]; x[30] = y[33]; x[37] = y[34]; x[42] = y[35];
+    x[43] = y[36]; x[44] = y[37]; x[50] = y[38]; x[48] = y[39]; x[66] = y[40]; x[68] = y[41];
+    x[74] = y[42]; x[72] = y[43]; x[54] = y[44]; x[56] = y[45]; x[15] = y[46]; x[16] = y[47];
+    x[27] = y[48]; x[28] = y[49]; x[49] = y[50]; x[79] = y[51]; x[67] = y[52]; x[55] = y[53];
+    x[17] = y[54]; x[29] = y[55]; x[45] = y[56]; x[46] = y[57]; x[73] = y[58]; x[22] = y[59];
+    x[21] = y[60]; x[34] = y[61]; x[33] = y[62]; x[47] = y[63]; x[69] = y[64]; x[70] = y[65];
+    x[77] = y[66]; x[71] = y[67]; x[76] = y[68]; x[75] = y[69]; x[23] = y[70]; x[35] = y[71];
+    x[52] = y[72]; x[51] = y[73]; x[62] = y[74]; x[61] = y[75]; x[60] = y[76]; x[53] = y[77];
+    x[57] = y[78]; x[58] = y[79]; x[59] = y[80]; x[64] = y[81]; x[63] = y[82]; x[65] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
-static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[83]; w[83] = acc * (1.0 / A[287]); }
     w[78] -= off[261] * w[83];
     w[79] -= off[262] * w[83];
@@ -10239,8 +10180,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[81]; w[81] = acc * (1.0 / A[283]); }
     { double acc = w[82]; acc -= A[285] * w[81]; w[82] = acc * (1.0 / A[286]); }
     { double acc = w[81]; acc -= A[284] * w[82]; w[81] = acc; }
-    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { double g0 = w[81], g1 = w[82]; w[81 + perm[81]] = g0; w[81 + perm[82]] = g1; }
     w[78] -= off[255] * w[81];
     w[79] -= off[256] * w[81];
     w[80] -= off[257] * w[81];
@@ -10259,8 +10199,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[78]; w[78] = acc * (1.0 / A[278]); }
     { double acc = w[79]; acc -= A[280] * w[78]; w[79] = acc * (1.0 / A[281]); }
     { double acc = w[78]; acc -= A[279] * w[79]; w[78] = acc; }
-    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { double g0 = w[78], g1 = w[79]; w[78 + perm[78]] = g0; w[78 + perm[79]] = g1; }
     w[19] -= off[238] * w[78];
     w[22] -= off[239] * w[78];
     w[24] -= off[240] * w[78];
@@ -10293,8 +10232,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[72]; w[72] = acc * (1.0 / A[270]); }
     { double acc = w[73]; acc -= A[272] * w[72]; w[73] = acc * (1.0 / A[273]); }
     { double acc = w[72]; acc -= A[271] * w[73]; w[72] = acc; }
-    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { double g0 = w[72], g1 = w[73]; w[72 + perm[72]] = g0; w[72 + perm[73]] = g1; }
     w[56] -= off[216] * w[72];
     w[57] -= off[217] * w[72];
     w[63] -= off[218] * w[72];
@@ -10324,12 +10262,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[66]; acc -= A[247] * w[67]; acc -= A[248] * w[68]; acc -= A[249] * w[69]; w[66] = acc; }
     { double acc = w[65]; acc -= A[240] * w[66]; acc -= A[241] * w[67]; acc -= A[242] * w[68]; acc -= A[243] * w[69]; w[65] = acc; }
     { double acc = w[64]; acc -= A[233] * w[65]; acc -= A[234] * w[66]; acc -= A[235] * w[67]; acc -= A[236] * w[68]; acc -= A[237] * w[69]; w[64] = acc; }
-    { int p = 64 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 64 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 64 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 64 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 64 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 64 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
+    { double g0 = w[64], g1 = w[65], g2 = w[66], g3 = w[67], g4 = w[68], g5 = w[69]; w[64 + perm[64]] = g0; w[64 + perm[65]] = g1; w[64 + perm[66]] = g2; w[64 + perm[67]] = g3; w[64 + perm[68]] = g4; w[64 + perm[69]] = g5; }
     w[19] -= off[191] * w[64];
     w[22] -= off[192] * w[64];
     w[24] -= off[193] * w[64];
@@ -10357,21 +10290,17 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[61]; w[61] = acc * (1.0 / A[227]); }
     { double acc = w[62]; acc -= A[229] * w[61]; w[62] = acc * (1.0 / A[230]); }
     { double acc = w[61]; acc -= A[228] * w[62]; w[61] = acc; }
-    { int p = 61 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
-    { int p = 61 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
+    { double g0 = w[61], g1 = w[62]; w[61 + perm[61]] = g0; w[61 + perm[62]] = g1; }
     w[48] -= off[177] * w[61];
     w[49] -= off[178] * w[61];
     w[55] -= off[179] * w[61];
     w[48] -= off[180] * w[62];
     w[49] -= off[181] * w[62];
     w[55] -= off[182] * w[62];
-}
-static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[59]; w[59] = acc * (1.0 / A[223]); }
     { double acc = w[60]; acc -= A[225] * w[59]; w[60] = acc * (1.0 / A[226]); }
     { double acc = w[59]; acc -= A[224] * w[60]; w[59] = acc; }
-    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    { double g0 = w[59], g1 = w[60]; w[59 + perm[59]] = g0; w[59 + perm[60]] = g1; }
     w[46] -= off[171] * w[59];
     w[47] -= off[172] * w[59];
     w[54] -= off[173] * w[59];
@@ -10383,11 +10312,12 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[25] -= off[168] * w[58];
     w[27] -= off[169] * w[58];
     w[51] -= off[170] * w[58];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[56]; w[56] = acc * (1.0 / A[218]); }
     { double acc = w[57]; acc -= A[220] * w[56]; w[57] = acc * (1.0 / A[221]); }
     { double acc = w[56]; acc -= A[219] * w[57]; w[56] = acc; }
-    { int p = 56 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 56 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    { double g0 = w[56], g1 = w[57]; w[56 + perm[56]] = g0; w[56 + perm[57]] = g1; }
     w[15] -= off[158] * w[56];
     w[16] -= off[159] * w[56];
     w[20] -= off[160] * w[56];
@@ -10438,8 +10368,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[48]; w[48] = acc * (1.0 / A[208]); }
     { double acc = w[49]; acc -= A[210] * w[48]; w[49] = acc * (1.0 / A[211]); }
     { double acc = w[48]; acc -= A[209] * w[49]; w[48] = acc; }
-    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { double g0 = w[48], g1 = w[49]; w[48 + perm[48]] = g0; w[48 + perm[49]] = g1; }
     w[3] -= off[117] * w[48];
     w[4] -= off[118] * w[48];
     w[5] -= off[119] * w[48];
@@ -10452,8 +10381,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[46]; w[46] = acc * (1.0 / A[204]); }
     { double acc = w[47]; acc -= A[206] * w[46]; w[47] = acc * (1.0 / A[207]); }
     { double acc = w[46]; acc -= A[205] * w[47]; w[46] = acc; }
-    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { double g0 = w[46], g1 = w[47]; w[46 + perm[46]] = g0; w[46 + perm[47]] = g1; }
     w[3] -= off[108] * w[46];
     w[4] -= off[109] * w[46];
     w[5] -= off[110] * w[46];
@@ -10547,7 +10475,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[16] -= off[44] * w[28];
     w[20] -= off[45] * w[28];
 }
-static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
     { double acc = w[16]; acc -= A[30] * w[15]; w[16] = acc * (1.0 / A[31]); }
     { double acc = w[17]; acc -= A[43] * w[15]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
@@ -10573,19 +10501,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; w[17] = acc; }
     { double acc = w[16]; acc -= A[32] * w[17]; acc -= A[33] * w[18]; acc -= A[34] * w[19]; acc -= A[35] * w[20]; acc -= A[36] * w[21]; acc -= A[37] * w[22]; acc -= A[38] * w[23]; acc -= A[39] * w[24]; acc -= A[40] * w[25]; acc -= A[41] * w[26]; acc -= A[42] * w[27]; w[16] = acc; }
     { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; acc -= A[29] * w[27]; w[15] = acc; }
-    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23], g9 = w[24], g10 = w[25], g11 = w[26], g12 = w[27]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; w[15 + perm[24]] = g9; w[15 + perm[25]] = g10; w[15 + perm[26]] = g11; w[15 + perm[27]] = g12; }
     w[3] -= off[35] * w[15];
     w[4] -= off[36] * w[15];
     w[5] -= off[37] * w[15];
@@ -10594,8 +10510,6 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     w[5] -= off[40] * w[16];
     w[9] -= off[41] * w[17];
     w[6] -= off[42] * w[18];
-}
-static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
     w[1] -= off[31] * w[14];
     w[3] -= off[32] * w[14];
@@ -10611,6 +10525,8 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     w[3] -= off[24] * w[12];
     w[4] -= off[25] * w[12];
     w[5] -= off[26] * w[12];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[11]; w[11] = acc * (1.0 / A[13]); }
     w[0] -= off[19] * w[11];
     w[3] -= off[20] * w[11];
@@ -10644,20 +10560,19 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_level_cut(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
-    solve_transposed_level_cut_0(A, off, piv, w);
-    solve_transposed_level_cut_1(A, off, piv, w);
-    solve_transposed_level_cut_2(A, off, piv, w);
-    solve_transposed_level_cut_3(A, off, piv, w);
+    solve_transposed_level_cut_0(A, off, perm, w);
+    solve_transposed_level_cut_1(A, off, perm, w);
+    solve_transposed_level_cut_2(A, off, perm, w);
+    solve_transposed_level_cut_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -10739,7 +10654,7 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_toggle[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_toggle[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_toggle[] = {0, 0, 1, 2};
 static const kinegen_design design_bucket_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10778,7 +10693,7 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15,
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_stroke[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_stroke[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_stroke[] = {0, 0, 1, 2};
 static const kinegen_design design_bucket_stroke = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10817,7 +10732,7 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_near_toggle[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_near_toggle[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_near_toggle[] = {0, 0, 1, 2};
 static const kinegen_design design_bucket_near_toggle = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10856,7 +10771,7 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging_fast[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_fast[] = {0, 0, 2, 3};
+static const int input_pieces_digging_fast[] = {0, 0, 1, 2};
 static const kinegen_design design_digging_fast = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10895,7 +10810,7 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15,
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging_paced[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_paced[] = {0, 0, 2, 3};
+static const int input_pieces_digging_paced[] = {0, 0, 1, 2};
 static const kinegen_design design_digging_paced = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
@@ -10934,7 +10849,7 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 1
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_oscillation[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_oscillation[] = {0, 0, 2, 3};
+static const int input_pieces_oscillation[] = {0, 0, 1, 2};
 static const kinegen_design design_oscillation = {
     .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */

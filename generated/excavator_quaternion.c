@@ -16550,9 +16550,10 @@ static const int diag_slot_digging[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 26, 
 static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 41, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 83, 86, 89, 95, 101, 104, 107, 110, 113, 116, 117, 118, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 152, 155, 158, 161, 164, 167, 170, 173, 176, 179, 182, 183, 184, 185, 188, 191, 194, 197, 200, 203, 204, 205, 206, 206, 209, 212, 215};
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_digging[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_digging) */
-static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_digging) */
+static void solve_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -16561,8 +16562,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -16596,15 +16596,7 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     { double acc = b[20]; acc -= off[45] * y[10]; y[21] = acc; }
     { double acc = b[21]; acc -= off[46] * y[6]; y[22] = acc; }
     { double acc = b[81]; acc -= off[47] * y[7]; acc -= off[48] * y[11]; acc -= off[49] * y[12]; y[23] = acc; }
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; }
     y[16] -= A[18] * y[15];
     y[17] -= A[19] * y[15];
     y[18] -= A[20] * y[15];
@@ -16686,14 +16678,10 @@ static void solve_digging_0(const double *restrict A, const double *restrict off
     y[16] *= 1.0 / A[27];
     y[15] -= A[26] * y[16];
     y[15] *= 1.0 / A[17];
-}
-static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[14]; acc -= off[50] * y[17]; acc -= off[51] * y[18]; acc -= off[52] * y[23]; y[24] = acc; }
     { double acc = b[15]; acc -= off[53] * y[17]; acc -= off[54] * y[18]; acc -= off[55] * y[23]; y[25] = acc; }
     { double acc = b[18]; acc -= off[56] * y[17]; acc -= off[57] * y[18]; acc -= off[58] * y[23]; y[26] = acc; }
-    { int p = 24 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 24 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 24 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
+    { double g0 = y[24 + perm[24]], g1 = y[24 + perm[25]], g2 = y[24 + perm[26]]; y[24] = g0; y[25] = g1; y[26] = g2; }
     y[25] -= A[99] * y[24];
     y[26] -= A[100] * y[24];
     y[26] -= A[103] * y[25];
@@ -16709,6 +16697,8 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[28] *= 1.0 / A[108];
     { double acc = b[31]; acc -= off[65] * y[9]; acc -= off[66] * y[16]; acc -= off[67] * y[21]; y[29] = acc; }
     y[29] *= 1.0 / A[109];
+}
+static void solve_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[34]; acc -= off[68] * y[9]; acc -= off[69] * y[16]; acc -= off[70] * y[21]; y[30] = acc; }
     y[30] *= 1.0 / A[110];
     { double acc = b[35]; acc -= off[71] * y[10]; acc -= off[72] * y[15]; acc -= off[73] * y[21]; y[31] = acc; }
@@ -16724,9 +16714,7 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     { double acc = b[25]; acc -= off[86] * y[3]; acc -= off[87] * y[4]; acc -= off[88] * y[5]; y[36] = acc; }
     { double acc = b[28]; acc -= off[89] * y[8]; acc -= off[90] * y[13]; acc -= off[91] * y[14]; acc -= off[92] * y[27]; acc -= off[93] * y[28]; acc -= off[94] * y[29]; y[37] = acc; }
     { double acc = b[29]; acc -= off[95] * y[8]; acc -= off[96] * y[13]; acc -= off[97] * y[14]; acc -= off[98] * y[27]; acc -= off[99] * y[28]; acc -= off[100] * y[29]; y[38] = acc; }
-    { int p = 36 + piv[36]; double t = y[36]; y[36] = y[p]; y[p] = t; }
-    { int p = 36 + piv[37]; double t = y[37]; y[37] = y[p]; y[p] = t; }
-    { int p = 36 + piv[38]; double t = y[38]; y[38] = y[p]; y[p] = t; }
+    { double g0 = y[36 + perm[36]], g1 = y[36 + perm[37]], g2 = y[36 + perm[38]]; y[36] = g0; y[37] = g1; y[38] = g2; }
     y[37] -= A[117] * y[36];
     y[38] -= A[118] * y[36];
     y[38] -= A[121] * y[37];
@@ -16736,8 +16724,6 @@ static void solve_digging_1(const double *restrict A, const double *restrict off
     y[37] *= 1.0 / A[120];
     y[36] -= A[119] * y[37];
     y[36] *= 1.0 / A[116];
-}
-static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[37]; acc -= off[101] * y[15]; acc -= off[102] * y[16]; acc -= off[103] * y[21]; y[39] = acc; }
     { double acc = b[38]; acc -= off[104] * y[15]; acc -= off[105] * y[16]; acc -= off[106] * y[21]; y[40] = acc; }
     { double acc = b[42]; acc -= off[107] * y[15]; acc -= off[108] * y[16]; acc -= off[109] * y[21]; y[41] = acc; }
@@ -16747,15 +16733,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[49]; acc -= off[117] * y[31]; y[45] = acc; }
     { double acc = b[50]; acc -= off[118] * y[32]; y[46] = acc; }
     { double acc = b[82]; acc -= off[119] * y[33]; acc -= off[120] * y[34]; acc -= off[121] * y[35]; y[47] = acc; }
-    { int p = 39 + piv[39]; double t = y[39]; y[39] = y[p]; y[p] = t; }
-    { int p = 39 + piv[40]; double t = y[40]; y[40] = y[p]; y[p] = t; }
-    { int p = 39 + piv[41]; double t = y[41]; y[41] = y[p]; y[p] = t; }
-    { int p = 39 + piv[42]; double t = y[42]; y[42] = y[p]; y[p] = t; }
-    { int p = 39 + piv[43]; double t = y[43]; y[43] = y[p]; y[p] = t; }
-    { int p = 39 + piv[44]; double t = y[44]; y[44] = y[p]; y[p] = t; }
-    { int p = 39 + piv[45]; double t = y[45]; y[45] = y[p]; y[p] = t; }
-    { int p = 39 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 39 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
+    { double g0 = y[39 + perm[39]], g1 = y[39 + perm[40]], g2 = y[39 + perm[41]], g3 = y[39 + perm[42]], g4 = y[39 + perm[43]], g5 = y[39 + perm[44]], g6 = y[39 + perm[45]], g7 = y[39 + perm[46]], g8 = y[39 + perm[47]]; y[39] = g0; y[40] = g1; y[41] = g2; y[42] = g3; y[43] = g4; y[44] = g5; y[45] = g6; y[46] = g7; y[47] = g8; }
     y[40] -= A[126] * y[39];
     y[41] -= A[127] * y[39];
     y[42] -= A[128] * y[39];
@@ -16840,9 +16818,7 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     { double acc = b[26]; acc -= off[122] * y[36]; acc -= off[123] * y[37]; acc -= off[124] * y[38]; y[48] = acc; }
     { double acc = b[27]; acc -= off[125] * y[36]; acc -= off[126] * y[37]; acc -= off[127] * y[38]; y[49] = acc; }
     { double acc = b[30]; acc -= off[128] * y[36]; acc -= off[129] * y[37]; acc -= off[130] * y[38]; y[50] = acc; }
-    { int p = 48 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
-    { int p = 48 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 48 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
+    { double g0 = y[48 + perm[48]], g1 = y[48 + perm[49]], g2 = y[48 + perm[50]]; y[48] = g0; y[49] = g1; y[50] = g2; }
     y[49] -= A[207] * y[48];
     y[50] -= A[208] * y[48];
     y[50] -= A[211] * y[49];
@@ -16852,12 +16828,12 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[49] *= 1.0 / A[210];
     y[48] -= A[209] * y[49];
     y[48] *= 1.0 / A[206];
+}
+static void solve_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[43]; acc -= off[131] * y[41]; acc -= off[132] * y[43]; acc -= off[133] * y[47]; y[51] = acc; }
     { double acc = b[44]; acc -= off[134] * y[41]; acc -= off[135] * y[43]; acc -= off[136] * y[47]; y[52] = acc; }
     { double acc = b[47]; acc -= off[137] * y[41]; acc -= off[138] * y[43]; acc -= off[139] * y[47]; y[53] = acc; }
-    { int p = 51 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
-    { int p = 51 + piv[52]; double t = y[52]; y[52] = y[p]; y[p] = t; }
-    { int p = 51 + piv[53]; double t = y[53]; y[53] = y[p]; y[p] = t; }
+    { double g0 = y[51 + perm[51]], g1 = y[51 + perm[52]], g2 = y[51 + perm[53]]; y[51] = g0; y[52] = g1; y[53] = g2; }
     y[52] -= A[216] * y[51];
     y[53] -= A[217] * y[51];
     y[53] -= A[220] * y[52];
@@ -16873,8 +16849,6 @@ static void solve_digging_2(const double *restrict A, const double *restrict off
     y[55] *= 1.0 / A[225];
     { double acc = b[53]; acc -= off[146] * y[32]; acc -= off[147] * y[39]; acc -= off[148] * y[40]; y[56] = acc; }
     y[56] *= 1.0 / A[226];
-}
-static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[58]; acc -= off[149] * y[32]; acc -= off[150] * y[39]; acc -= off[151] * y[40]; y[57] = acc; }
     y[57] *= 1.0 / A[227];
     { double acc = b[57]; acc -= off[152] * y[31]; acc -= off[153] * y[39]; acc -= off[154] * y[44]; y[58] = acc; }
@@ -16896,15 +16870,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     { double acc = b[78]; acc -= off[183] * y[58]; y[69] = acc; }
     { double acc = b[79]; acc -= off[184] * y[57]; y[70] = acc; }
     { double acc = b[83]; acc -= off[185] * y[59]; acc -= off[186] * y[60]; acc -= off[187] * y[61]; y[71] = acc; }
-    { int p = 63 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 63 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
-    { int p = 63 + piv[65]; double t = y[65]; y[65] = y[p]; y[p] = t; }
-    { int p = 63 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 63 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 63 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
-    { int p = 63 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 63 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 63 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
+    { double g0 = y[63 + perm[63]], g1 = y[63 + perm[64]], g2 = y[63 + perm[65]], g3 = y[63 + perm[66]], g4 = y[63 + perm[67]], g5 = y[63 + perm[68]], g6 = y[63 + perm[69]], g7 = y[63 + perm[70]], g8 = y[63 + perm[71]]; y[63] = g0; y[64] = g1; y[65] = g2; y[66] = g3; y[67] = g4; y[68] = g5; y[69] = g6; y[70] = g7; y[71] = g8; }
     y[64] -= A[234] * y[63];
     y[65] -= A[235] * y[63];
     y[66] -= A[236] * y[63];
@@ -16987,7 +16953,7 @@ static void solve_digging_3(const double *restrict A, const double *restrict off
     y[63] -= A[242] * y[64];
     y[63] *= 1.0 / A[233];
 }
-static void solve_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[54]; acc -= off[188] * y[39]; acc -= off[189] * y[40]; acc -= off[190] * y[44]; y[72] = acc; }
     { double acc = b[55]; acc -= off[191] * y[39]; acc -= off[192] * y[40]; acc -= off[193] * y[44]; y[73] = acc; }
     { double acc = b[61]; acc -= off[194] * y[62]; acc -= off[195] * y[64]; acc -= off[196] * y[68]; y[74] = acc; }
@@ -16997,15 +16963,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     { double acc = b[65]; acc -= off[204] * y[55]; y[78] = acc; }
     { double acc = b[66]; acc -= off[205] * y[56]; y[79] = acc; }
     y[80] = b[67];
-    { int p = 72 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 72 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 72 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
-    { int p = 72 + piv[75]; double t = y[75]; y[75] = y[p]; y[p] = t; }
-    { int p = 72 + piv[76]; double t = y[76]; y[76] = y[p]; y[p] = t; }
-    { int p = 72 + piv[77]; double t = y[77]; y[77] = y[p]; y[p] = t; }
-    { int p = 72 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 72 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 72 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
+    { double g0 = y[72 + perm[72]], g1 = y[72 + perm[73]], g2 = y[72 + perm[74]], g3 = y[72 + perm[75]], g4 = y[72 + perm[76]], g5 = y[72 + perm[77]], g6 = y[72 + perm[78]], g7 = y[72 + perm[79]], g8 = y[72 + perm[80]]; y[72] = g0; y[73] = g1; y[74] = g2; y[75] = g3; y[76] = g4; y[77] = g5; y[78] = g6; y[79] = g7; y[80] = g8; }
     y[73] -= A[315] * y[72];
     y[74] -= A[316] * y[72];
     y[75] -= A[317] * y[72];
@@ -17090,9 +17048,7 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
     { double acc = b[72]; acc -= off[206] * y[65]; acc -= off[207] * y[67]; acc -= off[208] * y[71]; y[81] = acc; }
     { double acc = b[73]; acc -= off[209] * y[65]; acc -= off[210] * y[67]; acc -= off[211] * y[71]; y[82] = acc; }
     { double acc = b[76]; acc -= off[212] * y[65]; acc -= off[213] * y[67]; acc -= off[214] * y[71]; y[83] = acc; }
-    { int p = 81 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 81 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 81 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
+    { double g0 = y[81 + perm[81]], g1 = y[81 + perm[82]], g2 = y[81 + perm[83]]; y[81] = g0; y[82] = g1; y[83] = g2; }
     y[82] -= A[396] * y[81];
     y[83] -= A[397] * y[81];
     y[83] -= A[400] * y[82];
@@ -17105,41 +17061,63 @@ static void solve_digging_4(const double *restrict A, const double *restrict off
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_digging_0(A, off, piv, b, y);
-    solve_digging_1(A, off, piv, b, y);
-    solve_digging_2(A, off, piv, b, y);
-    solve_digging_3(A, off, piv, b, y);
-    solve_digging_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+static void solve_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_digging_0(A, off, perm, b, y);
+    solve_digging_1(A, off, perm, b, y);
+    solve_digging_2(A, off, perm, b, y);
+    solve_digging_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[13] = y[11];
+    x[12] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[15] = y[17];
+    x[16] = y[18]; x[19] = y[19]; x[18] = y[20]; x[11] = y[21]; x[20] = y[22]; x[17] = y[23];
+    x[23] = y[24]; x[22] = y[25]; x[21] = y[26]; x[32] = y[27]; x[31] = y[28]; x[30] = y[29];
+    x[36] = y[30]; x[37] = y[31]; x[38] = y[32]; x[44] = y[33]; x[43] = y[34]; x[42] = y[35];
+    x[27] = y[36]; x[29] = y[37]; x[28] = y[38]; x[39] = y[39]; x[40] = y[40]; x[45] = y[41];
+    x[48] = y[42]; x[46] = y[43]; x[41] = y[44]; x[49] = y[45]; x[50] = y[46]; x[47] = y[47];
+    x[35] = y[48]; x[34] = y[49]; x[33] = y[50]; x[53] = y[51]; x[52] = y[52]; x[51] = y[53];
+    x[78] = y[54]; x[79] = y[55]; x[80] = y[56]; x[68] = y[57]; x[67] = y[58]; x[56] = y[59];
+    x[55] = y[60]; x[54] = y[61]; x[66] = y[62]; x[69] = y[63]; x[70] = y[64]; x[57] = y[65];
+    x[60] = y[66]; x[58] = y[67]; x[71] = y[68]; x[61] = y[69]; x[62] = y[70]; x[59] = y[71];
+    x[81] = y[72]; x[82] = y[73]; x[77] = y[74]; x[73] = y[75]; x[76] = y[76]; x[72] = y[77];
+    x[83] = y[78]; x[74] = y[79]; x[75] = y[80]; x[65] = y[81]; x[64] = y[82]; x[63] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_digging[] = {0, 24, 39, 57, 72};
+static const int solve_rows_digging[] = {0, 30, 51, 72};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_digging(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_digging(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_digging[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_digging_0(A, off, piv, b, y);
-    if (first <= 1) solve_digging_1(A, off, piv, b, y);
-    if (first <= 2) solve_digging_2(A, off, piv, b, y);
-    if (first <= 3) solve_digging_3(A, off, piv, b, y);
-    if (first <= 4) solve_digging_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_digging[j]] = y[j];
+    if (first <= 0) solve_digging_0(A, off, perm, b, y);
+    if (first <= 1) solve_digging_1(A, off, perm, b, y);
+    if (first <= 2) solve_digging_2(A, off, perm, b, y);
+    if (first <= 3) solve_digging_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[13] = y[11];
+    x[12] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[15] = y[17];
+    x[16] = y[18]; x[19] = y[19]; x[18] = y[20]; x[11] = y[21]; x[20] = y[22]; x[17] = y[23];
+    x[23] = y[24]; x[22] = y[25]; x[21] = y[26]; x[32] = y[27]; x[31] = y[28]; x[30] = y[29];
+    x[36] = y[30]; x[37] = y[31]; x[38] = y[32]; x[44] = y[33]; x[43] = y[34]; x[42] = y[35];
+    x[27] = y[36]; x[29] = y[37]; x[28] = y[38]; x[39] = y[39]; x[40] = y[40]; x[45] = y[41];
+    x[48] = y[42]; x[46] = y[43]; x[41] = y[44]; x[49] = y[45]; x[50] = y[46]; x[47] = y[47];
+    x[35] = y[48]; x[34] = y[49]; x[33] = y[50]; x[53] = y[51]; x[52] = y[52]; x[51] = y[53];
+    x[78] = y[54]; x[79] = y[55]; x[80] = y[56]; x[68] = y[57]; x[67] = y[58]; x[56] = y[59];
+    x[55] = y[60]; x[54] = y[61]; x[66] = y[62]; x[69] = y[63]; x[70] = y[64]; x[57] = y[65];
+    x[60] = y[66]; x[58] = y[67]; x[71] = y[68]; x[61] = y[69]; x[62] = y[70]; x[59] = y[71];
+    x[81] = y[72]; x[82] = y[73]; x[77] = y[74]; x[73] = y[75]; x[76] = y[76]; x[72] = y[77];
+    x[83] = y[78]; x[74] = y[79]; x[75] = y[80]; x[65] = y[81]; x[64] = y[82]; x[63] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_digging) */
-static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[81]; w[81] = acc * (1.0 / A[395]); }
     { double acc = w[82]; acc -= A[398] * w[81]; w[82] = acc * (1.0 / A[399]); }
     { double acc = w[83]; acc -= A[401] * w[81]; acc -= A[402] * w[82]; w[83] = acc * (1.0 / A[403]); }
     { double acc = w[82]; acc -= A[400] * w[83]; w[82] = acc; }
     { double acc = w[81]; acc -= A[396] * w[82]; acc -= A[397] * w[83]; w[81] = acc; }
-    { int p = 81 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { double g0 = w[81], g1 = w[82], g2 = w[83]; w[81 + perm[81]] = g0; w[81 + perm[82]] = g1; w[81 + perm[83]] = g2; }
     w[65] -= off[206] * w[81];
     w[67] -= off[207] * w[81];
     w[71] -= off[208] * w[81];
@@ -17166,15 +17144,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     { double acc = w[74]; acc -= A[335] * w[75]; acc -= A[336] * w[76]; acc -= A[337] * w[77]; acc -= A[338] * w[78]; acc -= A[339] * w[79]; acc -= A[340] * w[80]; w[74] = acc; }
     { double acc = w[73]; acc -= A[325] * w[74]; acc -= A[326] * w[75]; acc -= A[327] * w[76]; acc -= A[328] * w[77]; acc -= A[329] * w[78]; acc -= A[330] * w[79]; acc -= A[331] * w[80]; w[73] = acc; }
     { double acc = w[72]; acc -= A[315] * w[73]; acc -= A[316] * w[74]; acc -= A[317] * w[75]; acc -= A[318] * w[76]; acc -= A[319] * w[77]; acc -= A[320] * w[78]; acc -= A[321] * w[79]; acc -= A[322] * w[80]; w[72] = acc; }
-    { int p = 72 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 72 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 72 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
-    { int p = 72 + piv[77]; double t = w[77]; w[77] = w[p]; w[p] = t; }
-    { int p = 72 + piv[76]; double t = w[76]; w[76] = w[p]; w[p] = t; }
-    { int p = 72 + piv[75]; double t = w[75]; w[75] = w[p]; w[p] = t; }
-    { int p = 72 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 72 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 72 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
+    { double g0 = w[72], g1 = w[73], g2 = w[74], g3 = w[75], g4 = w[76], g5 = w[77], g6 = w[78], g7 = w[79], g8 = w[80]; w[72 + perm[72]] = g0; w[72 + perm[73]] = g1; w[72 + perm[74]] = g2; w[72 + perm[75]] = g3; w[72 + perm[76]] = g4; w[72 + perm[77]] = g5; w[72 + perm[78]] = g6; w[72 + perm[79]] = g7; w[72 + perm[80]] = g8; }
     w[39] -= off[188] * w[72];
     w[40] -= off[189] * w[72];
     w[44] -= off[190] * w[72];
@@ -17194,7 +17164,7 @@ static void solve_transposed_digging_0(const double *restrict A, const double *r
     w[55] -= off[204] * w[78];
     w[56] -= off[205] * w[79];
 }
-static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_digging_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[63]; w[63] = acc * (1.0 / A[233]); }
     { double acc = w[64]; acc -= A[242] * w[63]; w[64] = acc * (1.0 / A[243]); }
     { double acc = w[65]; acc -= A[251] * w[63]; acc -= A[252] * w[64]; w[65] = acc * (1.0 / A[253]); }
@@ -17212,15 +17182,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[65]; acc -= A[254] * w[66]; acc -= A[255] * w[67]; acc -= A[256] * w[68]; acc -= A[257] * w[69]; acc -= A[258] * w[70]; acc -= A[259] * w[71]; w[65] = acc; }
     { double acc = w[64]; acc -= A[244] * w[65]; acc -= A[245] * w[66]; acc -= A[246] * w[67]; acc -= A[247] * w[68]; acc -= A[248] * w[69]; acc -= A[249] * w[70]; acc -= A[250] * w[71]; w[64] = acc; }
     { double acc = w[63]; acc -= A[234] * w[64]; acc -= A[235] * w[65]; acc -= A[236] * w[66]; acc -= A[237] * w[67]; acc -= A[238] * w[68]; acc -= A[239] * w[69]; acc -= A[240] * w[70]; acc -= A[241] * w[71]; w[63] = acc; }
-    { int p = 63 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 63 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 63 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
-    { int p = 63 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 63 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 63 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
-    { int p = 63 + piv[65]; double t = w[65]; w[65] = w[p]; w[p] = t; }
-    { int p = 63 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 63 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
+    { double g0 = w[63], g1 = w[64], g2 = w[65], g3 = w[66], g4 = w[67], g5 = w[68], g6 = w[69], g7 = w[70], g8 = w[71]; w[63 + perm[63]] = g0; w[63 + perm[64]] = g1; w[63 + perm[65]] = g2; w[63 + perm[66]] = g3; w[63 + perm[67]] = g4; w[63 + perm[68]] = g5; w[63 + perm[69]] = g6; w[63 + perm[70]] = g7; w[63 + perm[71]] = g8; }
     w[39] -= off[167] * w[63];
     w[40] -= off[168] * w[63];
     w[44] -= off[169] * w[63];
@@ -17283,9 +17245,7 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     { double acc = w[53]; acc -= A[221] * w[51]; acc -= A[222] * w[52]; w[53] = acc * (1.0 / A[223]); }
     { double acc = w[52]; acc -= A[220] * w[53]; w[52] = acc; }
     { double acc = w[51]; acc -= A[216] * w[52]; acc -= A[217] * w[53]; w[51] = acc; }
-    { int p = 51 + piv[53]; double t = w[53]; w[53] = w[p]; w[p] = t; }
-    { int p = 51 + piv[52]; double t = w[52]; w[52] = w[p]; w[p] = t; }
-    { int p = 51 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
+    { double g0 = w[51], g1 = w[52], g2 = w[53]; w[51 + perm[51]] = g0; w[51 + perm[52]] = g1; w[51 + perm[53]] = g2; }
     w[41] -= off[131] * w[51];
     w[43] -= off[132] * w[51];
     w[47] -= off[133] * w[51];
@@ -17295,16 +17255,12 @@ static void solve_transposed_digging_1(const double *restrict A, const double *r
     w[41] -= off[137] * w[53];
     w[43] -= off[138] * w[53];
     w[47] -= off[139] * w[53];
-}
-static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[48]; w[48] = acc * (1.0 / A[206]); }
     { double acc = w[49]; acc -= A[209] * w[48]; w[49] = acc * (1.0 / A[210]); }
     { double acc = w[50]; acc -= A[212] * w[48]; acc -= A[213] * w[49]; w[50] = acc * (1.0 / A[214]); }
     { double acc = w[49]; acc -= A[211] * w[50]; w[49] = acc; }
     { double acc = w[48]; acc -= A[207] * w[49]; acc -= A[208] * w[50]; w[48] = acc; }
-    { int p = 48 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 48 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
-    { int p = 48 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
+    { double g0 = w[48], g1 = w[49], g2 = w[50]; w[48 + perm[48]] = g0; w[48 + perm[49]] = g1; w[48 + perm[50]] = g2; }
     w[36] -= off[122] * w[48];
     w[37] -= off[123] * w[48];
     w[38] -= off[124] * w[48];
@@ -17314,6 +17270,8 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[36] -= off[128] * w[50];
     w[37] -= off[129] * w[50];
     w[38] -= off[130] * w[50];
+}
+static void solve_transposed_digging_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[39]; w[39] = acc * (1.0 / A[125]); }
     { double acc = w[40]; acc -= A[134] * w[39]; w[40] = acc * (1.0 / A[135]); }
     { double acc = w[41]; acc -= A[143] * w[39]; acc -= A[144] * w[40]; w[41] = acc * (1.0 / A[145]); }
@@ -17331,15 +17289,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[41]; acc -= A[146] * w[42]; acc -= A[147] * w[43]; acc -= A[148] * w[44]; acc -= A[149] * w[45]; acc -= A[150] * w[46]; acc -= A[151] * w[47]; w[41] = acc; }
     { double acc = w[40]; acc -= A[136] * w[41]; acc -= A[137] * w[42]; acc -= A[138] * w[43]; acc -= A[139] * w[44]; acc -= A[140] * w[45]; acc -= A[141] * w[46]; acc -= A[142] * w[47]; w[40] = acc; }
     { double acc = w[39]; acc -= A[126] * w[40]; acc -= A[127] * w[41]; acc -= A[128] * w[42]; acc -= A[129] * w[43]; acc -= A[130] * w[44]; acc -= A[131] * w[45]; acc -= A[132] * w[46]; acc -= A[133] * w[47]; w[39] = acc; }
-    { int p = 39 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 39 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
-    { int p = 39 + piv[45]; double t = w[45]; w[45] = w[p]; w[p] = t; }
-    { int p = 39 + piv[44]; double t = w[44]; w[44] = w[p]; w[p] = t; }
-    { int p = 39 + piv[43]; double t = w[43]; w[43] = w[p]; w[p] = t; }
-    { int p = 39 + piv[42]; double t = w[42]; w[42] = w[p]; w[p] = t; }
-    { int p = 39 + piv[41]; double t = w[41]; w[41] = w[p]; w[p] = t; }
-    { int p = 39 + piv[40]; double t = w[40]; w[40] = w[p]; w[p] = t; }
-    { int p = 39 + piv[39]; double t = w[39]; w[39] = w[p]; w[p] = t; }
+    { double g0 = w[39], g1 = w[40], g2 = w[41], g3 = w[42], g4 = w[43], g5 = w[44], g6 = w[45], g7 = w[46], g8 = w[47]; w[39 + perm[39]] = g0; w[39 + perm[40]] = g1; w[39 + perm[41]] = g2; w[39 + perm[42]] = g3; w[39 + perm[43]] = g4; w[39 + perm[44]] = g5; w[39 + perm[45]] = g6; w[39 + perm[46]] = g7; w[39 + perm[47]] = g8; }
     w[15] -= off[101] * w[39];
     w[16] -= off[102] * w[39];
     w[21] -= off[103] * w[39];
@@ -17366,9 +17316,7 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     { double acc = w[38]; acc -= A[122] * w[36]; acc -= A[123] * w[37]; w[38] = acc * (1.0 / A[124]); }
     { double acc = w[37]; acc -= A[121] * w[38]; w[37] = acc; }
     { double acc = w[36]; acc -= A[117] * w[37]; acc -= A[118] * w[38]; w[36] = acc; }
-    { int p = 36 + piv[38]; double t = w[38]; w[38] = w[p]; w[p] = t; }
-    { int p = 36 + piv[37]; double t = w[37]; w[37] = w[p]; w[p] = t; }
-    { int p = 36 + piv[36]; double t = w[36]; w[36] = w[p]; w[p] = t; }
+    { double g0 = w[36], g1 = w[37], g2 = w[38]; w[36 + perm[36]] = g0; w[36 + perm[37]] = g1; w[36 + perm[38]] = g2; }
     w[3] -= off[86] * w[36];
     w[4] -= off[87] * w[36];
     w[5] -= off[88] * w[36];
@@ -17388,8 +17336,6 @@ static void solve_transposed_digging_2(const double *restrict A, const double *r
     w[9] -= off[83] * w[35];
     w[16] -= off[84] * w[35];
     w[21] -= off[85] * w[35];
-}
-static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[34]; w[34] = acc * (1.0 / A[114]); }
     w[10] -= off[80] * w[34];
     w[15] -= off[81] * w[34];
@@ -17427,9 +17373,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[26]; acc -= A[104] * w[24]; acc -= A[105] * w[25]; w[26] = acc * (1.0 / A[106]); }
     { double acc = w[25]; acc -= A[103] * w[26]; w[25] = acc; }
     { double acc = w[24]; acc -= A[99] * w[25]; acc -= A[100] * w[26]; w[24] = acc; }
-    { int p = 24 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 24 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 24 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
+    { double g0 = w[24], g1 = w[25], g2 = w[26]; w[24 + perm[24]] = g0; w[24 + perm[25]] = g1; w[24 + perm[26]] = g2; }
     w[17] -= off[50] * w[24];
     w[18] -= off[51] * w[24];
     w[23] -= off[52] * w[24];
@@ -17439,6 +17383,8 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[17] -= off[56] * w[26];
     w[18] -= off[57] * w[26];
     w[23] -= off[58] * w[26];
+}
+static void solve_transposed_digging_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
     { double acc = w[16]; acc -= A[26] * w[15]; w[16] = acc * (1.0 / A[27]); }
     { double acc = w[17]; acc -= A[35] * w[15]; acc -= A[36] * w[16]; w[17] = acc * (1.0 / A[37]); }
@@ -17456,15 +17402,7 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     { double acc = w[17]; acc -= A[38] * w[18]; acc -= A[39] * w[19]; acc -= A[40] * w[20]; acc -= A[41] * w[21]; acc -= A[42] * w[22]; acc -= A[43] * w[23]; w[17] = acc; }
     { double acc = w[16]; acc -= A[28] * w[17]; acc -= A[29] * w[18]; acc -= A[30] * w[19]; acc -= A[31] * w[20]; acc -= A[32] * w[21]; acc -= A[33] * w[22]; acc -= A[34] * w[23]; w[16] = acc; }
     { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; w[15] = acc; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; }
     w[3] -= off[29] * w[15];
     w[4] -= off[30] * w[15];
     w[5] -= off[31] * w[15];
@@ -17494,8 +17432,6 @@ static void solve_transposed_digging_3(const double *restrict A, const double *r
     w[0] -= off[23] * w[13];
     w[4] -= off[24] * w[13];
     w[5] -= off[25] * w[13];
-}
-static void solve_transposed_digging_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[12]; w[12] = acc * (1.0 / A[14]); }
     w[0] -= off[20] * w[12];
     w[4] -= off[21] * w[12];
@@ -17530,25 +17466,23 @@ static void solve_transposed_digging_4(const double *restrict A, const double *r
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_digging(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_digging(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_digging[j]];
-    solve_transposed_digging_0(A, off, piv, w);
-    solve_transposed_digging_1(A, off, piv, w);
-    solve_transposed_digging_2(A, off, piv, w);
-    solve_transposed_digging_3(A, off, piv, w);
-    solve_transposed_digging_4(A, off, piv, w);
+    solve_transposed_digging_0(A, off, perm, w);
+    solve_transposed_digging_1(A, off, perm, w);
+    solve_transposed_digging_2(A, off, perm, w);
+    solve_transposed_digging_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_digging[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging[] = {0, 0, 2, 3};
+static const int input_pieces_digging[] = {0, 0, 1, 2};
 static const int phi_p_rows_digging[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_digging[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_digging[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
@@ -17595,9 +17529,10 @@ static const int diag_slot_level_cut[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 30
 static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 40, 43, 46, 49, 52, 55, 58, 61, 64, 67, 70, 73, 76, 79, 82, 85, 88, 91, 94, 100, 106, 109, 115, 121, 124, 127, 130, 133, 136, 139, 142, 145, 148, 151, 154, 160, 166, 169, 172, 175, 178, 181, 184, 186, 188, 190, 193, 196, 199, 202, 205, 211, 217, 220, 223, 226};
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 25, 26, 21, 25, 27, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 46, 47, 48, 46, 47, 48, 46, 47, 48, 49, 50, 51, 49, 50, 51, 49, 50, 51, 15, 16, 20, 35, 36, 37, 38, 39, 52, 35, 36, 37, 38, 39, 52, 26, 27, 53, 62, 63, 64, 62, 63, 64, 62, 63, 64, 19, 23, 24, 19, 23, 24, 40, 43, 54, 65, 41, 42, 25, 26, 27, 41, 69, 70, 54, 69, 72, 40, 70, 72, 19, 23, 24, 44, 45, 55, 75, 76, 77, 44, 45, 55, 75, 76, 77, 78, 79, 80, 78, 79, 80, 78, 79, 80};
 static const int off_value_level_cut[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 31, 32, 33, 35, 36, 37, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 163, 171, 93, 94, 95, 89, 90, 91, 85, 86, 87, 159, 160, 161, 155, 156, 157, 151, 152, 153, 167, 168, 169, 187, 188, 189, 191, 192, 193, 195, 196, 197, 249, 250, 251, 241, 242, 243, 277, 278, 279, 285, 286, 287, 328, 330, 329, 320, 321, 322, 337, 338, 339, 345, 346, 347, 43, 44, 45, 63, 61, 62, 69, 68, 67, 72, 70, 71, 78, 77, 76, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 246, 247, 245, 258, 259, 257, 282, 283, 281, 342, 343, 341, 49, 51, 50, 55, 57, 56, 79, 81, 80, 115, 117, 116, 121, 123, 122, 145, 147, 146, 199, 200, 201, 217, 218, 219, 225, 223, 224, 226, 227, 228, 234, 232, 233, 325, 326, 324, 205, 206, 207, 211, 212, 213, 235, 236, 237, 289, 290, 291, 295, 296, 297, 301, 304, 307, 310, 313, 316, 335, 334, 336, 400, 401, 402, 396, 397, 398, 392, 393, 394, 349, 350, 351, 367, 369, 368, 375, 374, 373, 376, 378, 377, 384, 383, 382, 355, 356, 357, 361, 362, 363, 385, 386, 387};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_level_cut) */
-static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_level_cut) */
+static void solve_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -17606,8 +17541,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -17633,7 +17567,7 @@ static void solve_level_cut_0(const double *restrict A, const double *restrict o
     { double acc = b[23]; acc -= off[26] * y[1]; acc -= off[27] * y[3]; acc -= off[28] * y[5]; y[14] = acc; }
     y[14] *= 1.0 / A[16];
 }
-static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[8]; acc -= off[29] * y[3]; acc -= off[30] * y[4]; acc -= off[31] * y[5]; y[15] = acc; }
     { double acc = b[9]; acc -= off[32] * y[3]; acc -= off[33] * y[4]; acc -= off[34] * y[5]; y[16] = acc; }
     { double acc = b[34]; acc -= off[35] * y[9]; y[17] = acc; }
@@ -17647,19 +17581,7 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[25] = b[81];
     y[26] = b[82];
     y[27] = b[83];
-    { int p = 15 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 15 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 15 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 15 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 15 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 15 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 15 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 15 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 15 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
-    { int p = 15 + piv[24]; double t = y[24]; y[24] = y[p]; y[p] = t; }
-    { int p = 15 + piv[25]; double t = y[25]; y[25] = y[p]; y[p] = t; }
-    { int p = 15 + piv[26]; double t = y[26]; y[26] = y[p]; y[p] = t; }
-    { int p = 15 + piv[27]; double t = y[27]; y[27] = y[p]; y[p] = t; }
+    { double g0 = y[15 + perm[15]], g1 = y[15 + perm[16]], g2 = y[15 + perm[17]], g3 = y[15 + perm[18]], g4 = y[15 + perm[19]], g5 = y[15 + perm[20]], g6 = y[15 + perm[21]], g7 = y[15 + perm[22]], g8 = y[15 + perm[23]], g9 = y[15 + perm[24]], g10 = y[15 + perm[25]], g11 = y[15 + perm[26]], g12 = y[15 + perm[27]]; y[15] = g0; y[16] = g1; y[17] = g2; y[18] = g3; y[19] = g4; y[20] = g5; y[21] = g6; y[22] = g7; y[23] = g8; y[24] = g9; y[25] = g10; y[26] = g11; y[27] = g12; }
     y[16] -= A[18] * y[15];
     y[17] -= A[19] * y[15];
     y[18] -= A[20] * y[15];
@@ -17829,8 +17751,6 @@ static void solve_level_cut_1(const double *restrict A, const double *restrict o
     y[16] *= 1.0 / A[31];
     y[15] -= A[30] * y[16];
     y[15] *= 1.0 / A[17];
-}
-static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[21]; acc -= off[37] * y[6]; acc -= off[38] * y[15]; acc -= off[39] * y[16]; y[28] = acc; }
     y[28] *= 1.0 / A[186];
     { double acc = b[20]; acc -= off[40] * y[10]; acc -= off[41] * y[15]; acc -= off[42] * y[20]; y[29] = acc; }
@@ -17845,6 +17765,8 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[33] *= 1.0 / A[191];
     { double acc = b[35]; acc -= off[55] * y[10]; acc -= off[56] * y[15]; acc -= off[57] * y[20]; y[34] = acc; }
     y[34] *= 1.0 / A[192];
+}
+static void solve_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[39]; acc -= off[58] * y[9]; acc -= off[59] * y[16]; acc -= off[60] * y[20]; y[35] = acc; }
     y[35] *= 1.0 / A[193];
     { double acc = b[40]; acc -= off[61] * y[10]; acc -= off[62] * y[15]; acc -= off[63] * y[20]; y[36] = acc; }
@@ -17870,9 +17792,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     { double acc = b[13]; acc -= off[91] * y[3]; acc -= off[92] * y[4]; acc -= off[93] * y[5]; y[46] = acc; }
     { double acc = b[16]; acc -= off[94] * y[7]; acc -= off[95] * y[11]; acc -= off[96] * y[12]; acc -= off[97] * y[28]; acc -= off[98] * y[29]; acc -= off[99] * y[30]; y[47] = acc; }
     { double acc = b[17]; acc -= off[100] * y[7]; acc -= off[101] * y[11]; acc -= off[102] * y[12]; acc -= off[103] * y[28]; acc -= off[104] * y[29]; acc -= off[105] * y[30]; y[48] = acc; }
-    { int p = 46 + piv[46]; double t = y[46]; y[46] = y[p]; y[p] = t; }
-    { int p = 46 + piv[47]; double t = y[47]; y[47] = y[p]; y[p] = t; }
-    { int p = 46 + piv[48]; double t = y[48]; y[48] = y[p]; y[p] = t; }
+    { double g0 = y[46 + perm[46]], g1 = y[46 + perm[47]], g2 = y[46 + perm[48]]; y[46] = g0; y[47] = g1; y[48] = g2; }
     y[47] -= A[205] * y[46];
     y[48] -= A[206] * y[46];
     y[48] -= A[209] * y[47];
@@ -17885,9 +17805,7 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     { double acc = b[25]; acc -= off[106] * y[3]; acc -= off[107] * y[4]; acc -= off[108] * y[5]; y[49] = acc; }
     { double acc = b[28]; acc -= off[109] * y[8]; acc -= off[110] * y[13]; acc -= off[111] * y[14]; acc -= off[112] * y[31]; acc -= off[113] * y[32]; acc -= off[114] * y[33]; y[50] = acc; }
     { double acc = b[29]; acc -= off[115] * y[8]; acc -= off[116] * y[13]; acc -= off[117] * y[14]; acc -= off[118] * y[31]; acc -= off[119] * y[32]; acc -= off[120] * y[33]; y[51] = acc; }
-    { int p = 49 + piv[49]; double t = y[49]; y[49] = y[p]; y[p] = t; }
-    { int p = 49 + piv[50]; double t = y[50]; y[50] = y[p]; y[p] = t; }
-    { int p = 49 + piv[51]; double t = y[51]; y[51] = y[p]; y[p] = t; }
+    { double g0 = y[49 + perm[49]], g1 = y[49 + perm[50]], g2 = y[49 + perm[51]]; y[49] = g0; y[50] = g1; y[51] = g2; }
     y[50] -= A[214] * y[49];
     y[51] -= A[215] * y[49];
     y[51] -= A[218] * y[50];
@@ -17905,14 +17823,10 @@ static void solve_level_cut_2(const double *restrict A, const double *restrict o
     y[54] *= 1.0 / A[224];
     { double acc = b[69]; acc -= off[130] * y[19]; acc -= off[131] * y[24]; acc -= off[132] * y[34]; y[55] = acc; }
     y[55] *= 1.0 / A[225];
-}
-static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[14]; acc -= off[133] * y[46]; acc -= off[134] * y[47]; acc -= off[135] * y[48]; y[56] = acc; }
     { double acc = b[15]; acc -= off[136] * y[46]; acc -= off[137] * y[47]; acc -= off[138] * y[48]; y[57] = acc; }
     { double acc = b[18]; acc -= off[139] * y[46]; acc -= off[140] * y[47]; acc -= off[141] * y[48]; y[58] = acc; }
-    { int p = 56 + piv[56]; double t = y[56]; y[56] = y[p]; y[p] = t; }
-    { int p = 56 + piv[57]; double t = y[57]; y[57] = y[p]; y[p] = t; }
-    { int p = 56 + piv[58]; double t = y[58]; y[58] = y[p]; y[p] = t; }
+    { double g0 = y[56 + perm[56]], g1 = y[56 + perm[57]], g2 = y[56 + perm[58]]; y[56] = g0; y[57] = g1; y[58] = g2; }
     y[57] -= A[227] * y[56];
     y[58] -= A[228] * y[56];
     y[58] -= A[231] * y[57];
@@ -17925,9 +17839,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[26]; acc -= off[142] * y[49]; acc -= off[143] * y[50]; acc -= off[144] * y[51]; y[59] = acc; }
     { double acc = b[27]; acc -= off[145] * y[49]; acc -= off[146] * y[50]; acc -= off[147] * y[51]; y[60] = acc; }
     { double acc = b[30]; acc -= off[148] * y[49]; acc -= off[149] * y[50]; acc -= off[150] * y[51]; y[61] = acc; }
-    { int p = 59 + piv[59]; double t = y[59]; y[59] = y[p]; y[p] = t; }
-    { int p = 59 + piv[60]; double t = y[60]; y[60] = y[p]; y[p] = t; }
-    { int p = 59 + piv[61]; double t = y[61]; y[61] = y[p]; y[p] = t; }
+    { double g0 = y[59 + perm[59]], g1 = y[59 + perm[60]], g2 = y[59 + perm[61]]; y[59] = g0; y[60] = g1; y[61] = g2; }
     y[60] -= A[236] * y[59];
     y[61] -= A[237] * y[59];
     y[61] -= A[240] * y[60];
@@ -17940,9 +17852,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[42]; acc -= off[151] * y[15]; acc -= off[152] * y[16]; acc -= off[153] * y[20]; y[62] = acc; }
     { double acc = b[45]; acc -= off[154] * y[35]; acc -= off[155] * y[36]; acc -= off[156] * y[37]; acc -= off[157] * y[38]; acc -= off[158] * y[39]; acc -= off[159] * y[52]; y[63] = acc; }
     { double acc = b[46]; acc -= off[160] * y[35]; acc -= off[161] * y[36]; acc -= off[162] * y[37]; acc -= off[163] * y[38]; acc -= off[164] * y[39]; acc -= off[165] * y[52]; y[64] = acc; }
-    { int p = 62 + piv[62]; double t = y[62]; y[62] = y[p]; y[p] = t; }
-    { int p = 62 + piv[63]; double t = y[63]; y[63] = y[p]; y[p] = t; }
-    { int p = 62 + piv[64]; double t = y[64]; y[64] = y[p]; y[p] = t; }
+    { double g0 = y[62 + perm[62]], g1 = y[62 + perm[63]], g2 = y[62 + perm[64]]; y[62] = g0; y[63] = g1; y[64] = g2; }
     y[63] -= A[245] * y[62];
     y[64] -= A[246] * y[62];
     y[64] -= A[249] * y[63];
@@ -17952,14 +17862,14 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[63] *= 1.0 / A[248];
     y[62] -= A[247] * y[63];
     y[62] *= 1.0 / A[244];
+}
+static void solve_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[65]; acc -= off[166] * y[26]; acc -= off[167] * y[27]; acc -= off[168] * y[53]; y[65] = acc; }
     y[65] *= 1.0 / A[253];
     { double acc = b[43]; acc -= off[169] * y[62]; acc -= off[170] * y[63]; acc -= off[171] * y[64]; y[66] = acc; }
     { double acc = b[44]; acc -= off[172] * y[62]; acc -= off[173] * y[63]; acc -= off[174] * y[64]; y[67] = acc; }
     { double acc = b[47]; acc -= off[175] * y[62]; acc -= off[176] * y[63]; acc -= off[177] * y[64]; y[68] = acc; }
-    { int p = 66 + piv[66]; double t = y[66]; y[66] = y[p]; y[p] = t; }
-    { int p = 66 + piv[67]; double t = y[67]; y[67] = y[p]; y[p] = t; }
-    { int p = 66 + piv[68]; double t = y[68]; y[68] = y[p]; y[p] = t; }
+    { double g0 = y[66 + perm[66]], g1 = y[66 + perm[67]], g2 = y[66 + perm[68]]; y[66] = g0; y[67] = g1; y[68] = g2; }
     y[67] -= A[255] * y[66];
     y[68] -= A[256] * y[66];
     y[68] -= A[259] * y[67];
@@ -17975,12 +17885,7 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     { double acc = b[62]; acc -= off[186] * y[54]; acc -= off[187] * y[65]; y[72] = acc; }
     { double acc = b[63]; acc -= off[188] * y[41]; acc -= off[189] * y[42]; y[73] = acc; }
     { double acc = b[67]; acc -= off[190] * y[25]; acc -= off[191] * y[26]; acc -= off[192] * y[27]; y[74] = acc; }
-    { int p = 69 + piv[69]; double t = y[69]; y[69] = y[p]; y[p] = t; }
-    { int p = 69 + piv[70]; double t = y[70]; y[70] = y[p]; y[p] = t; }
-    { int p = 69 + piv[71]; double t = y[71]; y[71] = y[p]; y[p] = t; }
-    { int p = 69 + piv[72]; double t = y[72]; y[72] = y[p]; y[p] = t; }
-    { int p = 69 + piv[73]; double t = y[73]; y[73] = y[p]; y[p] = t; }
-    { int p = 69 + piv[74]; double t = y[74]; y[74] = y[p]; y[p] = t; }
+    { double g0 = y[69 + perm[69]], g1 = y[69 + perm[70]], g2 = y[69 + perm[71]], g3 = y[69 + perm[72]], g4 = y[69 + perm[73]], g5 = y[69 + perm[74]]; y[69] = g0; y[70] = g1; y[71] = g2; y[72] = g3; y[73] = g4; y[74] = g5; }
     y[70] -= A[264] * y[69];
     y[71] -= A[265] * y[69];
     y[72] -= A[266] * y[69];
@@ -18019,8 +17924,6 @@ static void solve_level_cut_3(const double *restrict A, const double *restrict o
     y[69] *= 1.0 / A[263];
     { double acc = b[79]; acc -= off[193] * y[41]; acc -= off[194] * y[69]; acc -= off[195] * y[70]; y[75] = acc; }
     y[75] *= 1.0 / A[299];
-}
-static void solve_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
     { double acc = b[78]; acc -= off[196] * y[54]; acc -= off[197] * y[69]; acc -= off[198] * y[72]; y[76] = acc; }
     y[76] *= 1.0 / A[300];
     { double acc = b[77]; acc -= off[199] * y[40]; acc -= off[200] * y[70]; acc -= off[201] * y[72]; y[77] = acc; }
@@ -18028,9 +17931,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     { double acc = b[71]; acc -= off[202] * y[19]; acc -= off[203] * y[23]; acc -= off[204] * y[24]; y[78] = acc; }
     { double acc = b[74]; acc -= off[205] * y[44]; acc -= off[206] * y[45]; acc -= off[207] * y[55]; acc -= off[208] * y[75]; acc -= off[209] * y[76]; acc -= off[210] * y[77]; y[79] = acc; }
     { double acc = b[75]; acc -= off[211] * y[44]; acc -= off[212] * y[45]; acc -= off[213] * y[55]; acc -= off[214] * y[75]; acc -= off[215] * y[76]; acc -= off[216] * y[77]; y[80] = acc; }
-    { int p = 78 + piv[78]; double t = y[78]; y[78] = y[p]; y[p] = t; }
-    { int p = 78 + piv[79]; double t = y[79]; y[79] = y[p]; y[p] = t; }
-    { int p = 78 + piv[80]; double t = y[80]; y[80] = y[p]; y[p] = t; }
+    { double g0 = y[78 + perm[78]], g1 = y[78 + perm[79]], g2 = y[78 + perm[80]]; y[78] = g0; y[79] = g1; y[80] = g2; }
     y[79] -= A[303] * y[78];
     y[80] -= A[304] * y[78];
     y[80] -= A[307] * y[79];
@@ -18043,9 +17944,7 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
     { double acc = b[72]; acc -= off[217] * y[78]; acc -= off[218] * y[79]; acc -= off[219] * y[80]; y[81] = acc; }
     { double acc = b[73]; acc -= off[220] * y[78]; acc -= off[221] * y[79]; acc -= off[222] * y[80]; y[82] = acc; }
     { double acc = b[76]; acc -= off[223] * y[78]; acc -= off[224] * y[79]; acc -= off[225] * y[80]; y[83] = acc; }
-    { int p = 81 + piv[81]; double t = y[81]; y[81] = y[p]; y[p] = t; }
-    { int p = 81 + piv[82]; double t = y[82]; y[82] = y[p]; y[p] = t; }
-    { int p = 81 + piv[83]; double t = y[83]; y[83] = y[p]; y[p] = t; }
+    { double g0 = y[81 + perm[81]], g1 = y[81 + perm[82]], g2 = y[81 + perm[83]]; y[81] = g0; y[82] = g1; y[83] = g2; }
     y[82] -= A[312] * y[81];
     y[83] -= A[313] * y[81];
     y[83] -= A[316] * y[82];
@@ -18058,41 +17957,63 @@ static void solve_level_cut_4(const double *restrict A, const double *restrict o
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_level_cut_0(A, off, piv, b, y);
-    solve_level_cut_1(A, off, piv, b, y);
-    solve_level_cut_2(A, off, piv, b, y);
-    solve_level_cut_3(A, off, piv, b, y);
-    solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+static void solve_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_level_cut_0(A, off, perm, b, y);
+    solve_level_cut_1(A, off, perm, b, y);
+    solve_level_cut_2(A, off, perm, b, y);
+    solve_level_cut_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[12] = y[11];
+    x[13] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[36] = y[17];
+    x[38] = y[18]; x[39] = y[19]; x[11] = y[20]; x[78] = y[21]; x[80] = y[22]; x[40] = y[23];
+    x[41] = y[24]; x[82] = y[25]; x[81] = y[26]; x[83] = y[27]; x[20] = y[28]; x[19] = y[29];
+    x[18] = y[30]; x[32] = y[31]; x[31] = y[32]; x[30] = y[33]; x[37] = y[34]; x[42] = y[35];
+    x[43] = y[36]; x[44] = y[37]; x[50] = y[38]; x[48] = y[39]; x[66] = y[40]; x[68] = y[41];
+    x[74] = y[42]; x[72] = y[43]; x[54] = y[44]; x[56] = y[45]; x[15] = y[46]; x[17] = y[47];
+    x[16] = y[48]; x[27] = y[49]; x[29] = y[50]; x[28] = y[51]; x[49] = y[52]; x[79] = y[53];
+    x[67] = y[54]; x[55] = y[55]; x[23] = y[56]; x[22] = y[57]; x[21] = y[58]; x[35] = y[59];
+    x[34] = y[60]; x[33] = y[61]; x[45] = y[62]; x[46] = y[63]; x[47] = y[64]; x[73] = y[65];
+    x[53] = y[66]; x[52] = y[67]; x[51] = y[68]; x[69] = y[69]; x[70] = y[70]; x[77] = y[71];
+    x[71] = y[72]; x[76] = y[73]; x[75] = y[74]; x[62] = y[75]; x[61] = y[76]; x[60] = y[77];
+    x[57] = y[78]; x[58] = y[79]; x[59] = y[80]; x[65] = y[81]; x[64] = y[82]; x[63] = y[83];
 }
 
 /* the first permuted row of each function above */
-static const int solve_rows_level_cut[] = {0, 15, 28, 56, 76};
+static const int solve_rows_level_cut[] = {0, 15, 35, 65};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_level_cut(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_level_cut(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_level_cut[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_level_cut_0(A, off, piv, b, y);
-    if (first <= 1) solve_level_cut_1(A, off, piv, b, y);
-    if (first <= 2) solve_level_cut_2(A, off, piv, b, y);
-    if (first <= 3) solve_level_cut_3(A, off, piv, b, y);
-    if (first <= 4) solve_level_cut_4(A, off, piv, b, y);
-    for (int j = 0; j < 84; ++j) x[col_order_level_cut[j]] = y[j];
+    if (first <= 0) solve_level_cut_0(A, off, perm, b, y);
+    if (first <= 1) solve_level_cut_1(A, off, perm, b, y);
+    if (first <= 2) solve_level_cut_2(A, off, perm, b, y);
+    if (first <= 3) solve_level_cut_3(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[8] = y[6]; x[14] = y[7]; x[26] = y[8]; x[6] = y[9]; x[7] = y[10]; x[12] = y[11];
+    x[13] = y[12]; x[24] = y[13]; x[25] = y[14]; x[9] = y[15]; x[10] = y[16]; x[36] = y[17];
+    x[38] = y[18]; x[39] = y[19]; x[11] = y[20]; x[78] = y[21]; x[80] = y[22]; x[40] = y[23];
+    x[41] = y[24]; x[82] = y[25]; x[81] = y[26]; x[83] = y[27]; x[20] = y[28]; x[19] = y[29];
+    x[18] = y[30]; x[32] = y[31]; x[31] = y[32]; x[30] = y[33]; x[37] = y[34]; x[42] = y[35];
+    x[43] = y[36]; x[44] = y[37]; x[50] = y[38]; x[48] = y[39]; x[66] = y[40]; x[68] = y[41];
+    x[74] = y[42]; x[72] = y[43]; x[54] = y[44]; x[56] = y[45]; x[15] = y[46]; x[17] = y[47];
+    x[16] = y[48]; x[27] = y[49]; x[29] = y[50]; x[28] = y[51]; x[49] = y[52]; x[79] = y[53];
+    x[67] = y[54]; x[55] = y[55]; x[23] = y[56]; x[22] = y[57]; x[21] = y[58]; x[35] = y[59];
+    x[34] = y[60]; x[33] = y[61]; x[45] = y[62]; x[46] = y[63]; x[47] = y[64]; x[73] = y[65];
+    x[53] = y[66]; x[52] = y[67]; x[51] = y[68]; x[69] = y[69]; x[70] = y[70]; x[77] = y[71];
+    x[71] = y[72]; x[76] = y[73]; x[75] = y[74]; x[62] = y[75]; x[61] = y[76]; x[60] = y[77];
+    x[57] = y[78]; x[58] = y[79]; x[59] = y[80]; x[65] = y[81]; x[64] = y[82]; x[63] = y[83];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_level_cut) */
-static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[81]; w[81] = acc * (1.0 / A[311]); }
     { double acc = w[82]; acc -= A[314] * w[81]; w[82] = acc * (1.0 / A[315]); }
     { double acc = w[83]; acc -= A[317] * w[81]; acc -= A[318] * w[82]; w[83] = acc * (1.0 / A[319]); }
     { double acc = w[82]; acc -= A[316] * w[83]; w[82] = acc; }
     { double acc = w[81]; acc -= A[312] * w[82]; acc -= A[313] * w[83]; w[81] = acc; }
-    { int p = 81 + piv[83]; double t = w[83]; w[83] = w[p]; w[p] = t; }
-    { int p = 81 + piv[82]; double t = w[82]; w[82] = w[p]; w[p] = t; }
-    { int p = 81 + piv[81]; double t = w[81]; w[81] = w[p]; w[p] = t; }
+    { double g0 = w[81], g1 = w[82], g2 = w[83]; w[81 + perm[81]] = g0; w[81 + perm[82]] = g1; w[81 + perm[83]] = g2; }
     w[78] -= off[217] * w[81];
     w[79] -= off[218] * w[81];
     w[80] -= off[219] * w[81];
@@ -18107,9 +18028,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[80]; acc -= A[308] * w[78]; acc -= A[309] * w[79]; w[80] = acc * (1.0 / A[310]); }
     { double acc = w[79]; acc -= A[307] * w[80]; w[79] = acc; }
     { double acc = w[78]; acc -= A[303] * w[79]; acc -= A[304] * w[80]; w[78] = acc; }
-    { int p = 78 + piv[80]; double t = w[80]; w[80] = w[p]; w[p] = t; }
-    { int p = 78 + piv[79]; double t = w[79]; w[79] = w[p]; w[p] = t; }
-    { int p = 78 + piv[78]; double t = w[78]; w[78] = w[p]; w[p] = t; }
+    { double g0 = w[78], g1 = w[79], g2 = w[80]; w[78 + perm[78]] = g0; w[78 + perm[79]] = g1; w[78 + perm[80]] = g2; }
     w[19] -= off[202] * w[78];
     w[23] -= off[203] * w[78];
     w[24] -= off[204] * w[78];
@@ -18148,12 +18067,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[71]; acc -= A[278] * w[72]; acc -= A[279] * w[73]; acc -= A[280] * w[74]; w[71] = acc; }
     { double acc = w[70]; acc -= A[271] * w[71]; acc -= A[272] * w[72]; acc -= A[273] * w[73]; acc -= A[274] * w[74]; w[70] = acc; }
     { double acc = w[69]; acc -= A[264] * w[70]; acc -= A[265] * w[71]; acc -= A[266] * w[72]; acc -= A[267] * w[73]; acc -= A[268] * w[74]; w[69] = acc; }
-    { int p = 69 + piv[74]; double t = w[74]; w[74] = w[p]; w[p] = t; }
-    { int p = 69 + piv[73]; double t = w[73]; w[73] = w[p]; w[p] = t; }
-    { int p = 69 + piv[72]; double t = w[72]; w[72] = w[p]; w[p] = t; }
-    { int p = 69 + piv[71]; double t = w[71]; w[71] = w[p]; w[p] = t; }
-    { int p = 69 + piv[70]; double t = w[70]; w[70] = w[p]; w[p] = t; }
-    { int p = 69 + piv[69]; double t = w[69]; w[69] = w[p]; w[p] = t; }
+    { double g0 = w[69], g1 = w[70], g2 = w[71], g3 = w[72], g4 = w[73], g5 = w[74]; w[69 + perm[69]] = g0; w[69 + perm[70]] = g1; w[69 + perm[71]] = g2; w[69 + perm[72]] = g3; w[69 + perm[73]] = g4; w[69 + perm[74]] = g5; }
     w[19] -= off[178] * w[69];
     w[23] -= off[179] * w[69];
     w[24] -= off[180] * w[69];
@@ -18174,9 +18088,7 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     { double acc = w[68]; acc -= A[260] * w[66]; acc -= A[261] * w[67]; w[68] = acc * (1.0 / A[262]); }
     { double acc = w[67]; acc -= A[259] * w[68]; w[67] = acc; }
     { double acc = w[66]; acc -= A[255] * w[67]; acc -= A[256] * w[68]; w[66] = acc; }
-    { int p = 66 + piv[68]; double t = w[68]; w[68] = w[p]; w[p] = t; }
-    { int p = 66 + piv[67]; double t = w[67]; w[67] = w[p]; w[p] = t; }
-    { int p = 66 + piv[66]; double t = w[66]; w[66] = w[p]; w[p] = t; }
+    { double g0 = w[66], g1 = w[67], g2 = w[68]; w[66 + perm[66]] = g0; w[66 + perm[67]] = g1; w[66 + perm[68]] = g2; }
     w[62] -= off[169] * w[66];
     w[63] -= off[170] * w[66];
     w[64] -= off[171] * w[66];
@@ -18190,16 +18102,12 @@ static void solve_transposed_level_cut_0(const double *restrict A, const double 
     w[26] -= off[166] * w[65];
     w[27] -= off[167] * w[65];
     w[53] -= off[168] * w[65];
-}
-static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[62]; w[62] = acc * (1.0 / A[244]); }
     { double acc = w[63]; acc -= A[247] * w[62]; w[63] = acc * (1.0 / A[248]); }
     { double acc = w[64]; acc -= A[250] * w[62]; acc -= A[251] * w[63]; w[64] = acc * (1.0 / A[252]); }
     { double acc = w[63]; acc -= A[249] * w[64]; w[63] = acc; }
     { double acc = w[62]; acc -= A[245] * w[63]; acc -= A[246] * w[64]; w[62] = acc; }
-    { int p = 62 + piv[64]; double t = w[64]; w[64] = w[p]; w[p] = t; }
-    { int p = 62 + piv[63]; double t = w[63]; w[63] = w[p]; w[p] = t; }
-    { int p = 62 + piv[62]; double t = w[62]; w[62] = w[p]; w[p] = t; }
+    { double g0 = w[62], g1 = w[63], g2 = w[64]; w[62 + perm[62]] = g0; w[62 + perm[63]] = g1; w[62 + perm[64]] = g2; }
     w[15] -= off[151] * w[62];
     w[16] -= off[152] * w[62];
     w[20] -= off[153] * w[62];
@@ -18215,14 +18123,14 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[38] -= off[163] * w[64];
     w[39] -= off[164] * w[64];
     w[52] -= off[165] * w[64];
+}
+static void solve_transposed_level_cut_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[59]; w[59] = acc * (1.0 / A[235]); }
     { double acc = w[60]; acc -= A[238] * w[59]; w[60] = acc * (1.0 / A[239]); }
     { double acc = w[61]; acc -= A[241] * w[59]; acc -= A[242] * w[60]; w[61] = acc * (1.0 / A[243]); }
     { double acc = w[60]; acc -= A[240] * w[61]; w[60] = acc; }
     { double acc = w[59]; acc -= A[236] * w[60]; acc -= A[237] * w[61]; w[59] = acc; }
-    { int p = 59 + piv[61]; double t = w[61]; w[61] = w[p]; w[p] = t; }
-    { int p = 59 + piv[60]; double t = w[60]; w[60] = w[p]; w[p] = t; }
-    { int p = 59 + piv[59]; double t = w[59]; w[59] = w[p]; w[p] = t; }
+    { double g0 = w[59], g1 = w[60], g2 = w[61]; w[59 + perm[59]] = g0; w[59 + perm[60]] = g1; w[59 + perm[61]] = g2; }
     w[49] -= off[142] * w[59];
     w[50] -= off[143] * w[59];
     w[51] -= off[144] * w[59];
@@ -18237,9 +18145,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[58]; acc -= A[232] * w[56]; acc -= A[233] * w[57]; w[58] = acc * (1.0 / A[234]); }
     { double acc = w[57]; acc -= A[231] * w[58]; w[57] = acc; }
     { double acc = w[56]; acc -= A[227] * w[57]; acc -= A[228] * w[58]; w[56] = acc; }
-    { int p = 56 + piv[58]; double t = w[58]; w[58] = w[p]; w[p] = t; }
-    { int p = 56 + piv[57]; double t = w[57]; w[57] = w[p]; w[p] = t; }
-    { int p = 56 + piv[56]; double t = w[56]; w[56] = w[p]; w[p] = t; }
+    { double g0 = w[56], g1 = w[57], g2 = w[58]; w[56 + perm[56]] = g0; w[56 + perm[57]] = g1; w[56 + perm[58]] = g2; }
     w[46] -= off[133] * w[56];
     w[47] -= off[134] * w[56];
     w[48] -= off[135] * w[56];
@@ -18270,9 +18176,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[51]; acc -= A[219] * w[49]; acc -= A[220] * w[50]; w[51] = acc * (1.0 / A[221]); }
     { double acc = w[50]; acc -= A[218] * w[51]; w[50] = acc; }
     { double acc = w[49]; acc -= A[214] * w[50]; acc -= A[215] * w[51]; w[49] = acc; }
-    { int p = 49 + piv[51]; double t = w[51]; w[51] = w[p]; w[p] = t; }
-    { int p = 49 + piv[50]; double t = w[50]; w[50] = w[p]; w[p] = t; }
-    { int p = 49 + piv[49]; double t = w[49]; w[49] = w[p]; w[p] = t; }
+    { double g0 = w[49], g1 = w[50], g2 = w[51]; w[49 + perm[49]] = g0; w[49 + perm[50]] = g1; w[49 + perm[51]] = g2; }
     w[3] -= off[106] * w[49];
     w[4] -= off[107] * w[49];
     w[5] -= off[108] * w[49];
@@ -18293,9 +18197,7 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     { double acc = w[48]; acc -= A[210] * w[46]; acc -= A[211] * w[47]; w[48] = acc * (1.0 / A[212]); }
     { double acc = w[47]; acc -= A[209] * w[48]; w[47] = acc; }
     { double acc = w[46]; acc -= A[205] * w[47]; acc -= A[206] * w[48]; w[46] = acc; }
-    { int p = 46 + piv[48]; double t = w[48]; w[48] = w[p]; w[p] = t; }
-    { int p = 46 + piv[47]; double t = w[47]; w[47] = w[p]; w[p] = t; }
-    { int p = 46 + piv[46]; double t = w[46]; w[46] = w[p]; w[p] = t; }
+    { double g0 = w[46], g1 = w[47], g2 = w[48]; w[46 + perm[46]] = g0; w[46 + perm[47]] = g1; w[46 + perm[48]] = g2; }
     w[3] -= off[91] * w[46];
     w[4] -= off[92] * w[46];
     w[5] -= off[93] * w[46];
@@ -18331,9 +18233,6 @@ static void solve_transposed_level_cut_1(const double *restrict A, const double 
     w[18] -= off[76] * w[41];
     w[19] -= off[77] * w[41];
     w[23] -= off[78] * w[41];
-}
-static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
-    (void)piv;
     { double acc = w[40]; w[40] = acc * (1.0 / A[198]); }
     w[17] -= off[73] * w[40];
     w[23] -= off[74] * w[40];
@@ -18387,7 +18286,7 @@ static void solve_transposed_level_cut_2(const double *restrict A, const double 
     w[15] -= off[38] * w[28];
     w[16] -= off[39] * w[28];
 }
-static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_level_cut_2(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[15]; w[15] = acc * (1.0 / A[17]); }
     { double acc = w[16]; acc -= A[30] * w[15]; w[16] = acc * (1.0 / A[31]); }
     { double acc = w[17]; acc -= A[43] * w[15]; acc -= A[44] * w[16]; w[17] = acc * (1.0 / A[45]); }
@@ -18413,19 +18312,7 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; acc -= A[49] * w[21]; acc -= A[50] * w[22]; acc -= A[51] * w[23]; acc -= A[52] * w[24]; acc -= A[53] * w[25]; acc -= A[54] * w[26]; acc -= A[55] * w[27]; w[17] = acc; }
     { double acc = w[16]; acc -= A[32] * w[17]; acc -= A[33] * w[18]; acc -= A[34] * w[19]; acc -= A[35] * w[20]; acc -= A[36] * w[21]; acc -= A[37] * w[22]; acc -= A[38] * w[23]; acc -= A[39] * w[24]; acc -= A[40] * w[25]; acc -= A[41] * w[26]; acc -= A[42] * w[27]; w[16] = acc; }
     { double acc = w[15]; acc -= A[18] * w[16]; acc -= A[19] * w[17]; acc -= A[20] * w[18]; acc -= A[21] * w[19]; acc -= A[22] * w[20]; acc -= A[23] * w[21]; acc -= A[24] * w[22]; acc -= A[25] * w[23]; acc -= A[26] * w[24]; acc -= A[27] * w[25]; acc -= A[28] * w[26]; acc -= A[29] * w[27]; w[15] = acc; }
-    { int p = 15 + piv[27]; double t = w[27]; w[27] = w[p]; w[p] = t; }
-    { int p = 15 + piv[26]; double t = w[26]; w[26] = w[p]; w[p] = t; }
-    { int p = 15 + piv[25]; double t = w[25]; w[25] = w[p]; w[p] = t; }
-    { int p = 15 + piv[24]; double t = w[24]; w[24] = w[p]; w[p] = t; }
-    { int p = 15 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 15 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 15 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 15 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 15 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 15 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 15 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 15 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 15 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
+    { double g0 = w[15], g1 = w[16], g2 = w[17], g3 = w[18], g4 = w[19], g5 = w[20], g6 = w[21], g7 = w[22], g8 = w[23], g9 = w[24], g10 = w[25], g11 = w[26], g12 = w[27]; w[15 + perm[15]] = g0; w[15 + perm[16]] = g1; w[15 + perm[17]] = g2; w[15 + perm[18]] = g3; w[15 + perm[19]] = g4; w[15 + perm[20]] = g5; w[15 + perm[21]] = g6; w[15 + perm[22]] = g7; w[15 + perm[23]] = g8; w[15 + perm[24]] = g9; w[15 + perm[25]] = g10; w[15 + perm[26]] = g11; w[15 + perm[27]] = g12; }
     w[3] -= off[29] * w[15];
     w[4] -= off[30] * w[15];
     w[5] -= off[31] * w[15];
@@ -18434,8 +18321,6 @@ static void solve_transposed_level_cut_3(const double *restrict A, const double 
     w[5] -= off[34] * w[16];
     w[9] -= off[35] * w[17];
     w[6] -= off[36] * w[18];
-}
-static void solve_transposed_level_cut_4(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
     { double acc = w[14]; w[14] = acc * (1.0 / A[16]); }
     w[1] -= off[26] * w[14];
     w[3] -= off[27] * w[14];
@@ -18452,6 +18337,8 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     w[0] -= off[17] * w[11];
     w[4] -= off[18] * w[11];
     w[5] -= off[19] * w[11];
+}
+static void solve_transposed_level_cut_3(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[10]; w[10] = acc * (1.0 / A[12]); }
     w[1] -= off[14] * w[10];
     w[3] -= off[15] * w[10];
@@ -18478,21 +18365,19 @@ static void solve_transposed_level_cut_4(const double *restrict A, const double 
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_level_cut(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_level_cut(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 84; ++j) w[j] = c[col_order_level_cut[j]];
-    solve_transposed_level_cut_0(A, off, piv, w);
-    solve_transposed_level_cut_1(A, off, piv, w);
-    solve_transposed_level_cut_2(A, off, piv, w);
-    solve_transposed_level_cut_3(A, off, piv, w);
-    solve_transposed_level_cut_4(A, off, piv, w);
+    solve_transposed_level_cut_0(A, off, perm, w);
+    solve_transposed_level_cut_1(A, off, perm, w);
+    solve_transposed_level_cut_2(A, off, perm, w);
+    solve_transposed_level_cut_3(A, off, perm, w);
     for (int i = 0; i < 84; ++i) x[row_order_level_cut[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -18592,7 +18477,7 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_bucket_toggle[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_toggle[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_toggle[] = {0, 0, 1, 2};
 static const int phi_p_rows_bucket_toggle[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_bucket_toggle[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_bucket_toggle[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
@@ -18640,7 +18525,7 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_bucket_stroke[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_stroke[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_stroke[] = {0, 0, 1, 2};
 static const int phi_p_rows_bucket_stroke[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_bucket_stroke[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_bucket_stroke[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
@@ -18688,7 +18573,7 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_bucket_near_toggle[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_bucket_near_toggle[] = {0, 0, 2, 3};
+static const int input_pieces_bucket_near_toggle[] = {0, 0, 1, 2};
 static const int phi_p_rows_bucket_near_toggle[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_bucket_near_toggle[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_bucket_near_toggle[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
@@ -18736,7 +18621,7 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_digging_fast[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_fast[] = {0, 0, 2, 3};
+static const int input_pieces_digging_fast[] = {0, 0, 1, 2};
 static const int phi_p_rows_digging_fast[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_digging_fast[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_digging_fast[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
@@ -18784,7 +18669,7 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_digging_paced[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_digging_paced[] = {0, 0, 2, 3};
+static const int input_pieces_digging_paced[] = {0, 0, 1, 2};
 static const int phi_p_rows_digging_paced[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_digging_paced[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_digging_paced[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
@@ -18832,7 +18717,7 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
 static const int off_value_oscillation[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
-static const int input_pieces_oscillation[] = {0, 0, 2, 3};
+static const int input_pieces_oscillation[] = {0, 0, 1, 2};
 static const int phi_p_rows_oscillation[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
 static const int phi_p_cols_oscillation[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
 static const int dvel_rows_oscillation[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};

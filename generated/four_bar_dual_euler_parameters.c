@@ -1103,17 +1103,15 @@ static const int diag_slot_crank_turn[] = {16, 20, 24, 28, 17, 21, 25, 29, 18, 2
 static const int off_start_crank_turn[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40};
 static const int off_col_crank_turn[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7};
 static const int off_value_crank_turn[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 175, 174, 173, 172, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_crank_turn) */
-static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_crank_turn) */
+static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[3];
     y[1] = b[4];
     y[2] = b[17];
     y[3] = b[23];
-    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
-    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
-    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
-    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { double g0 = y[0 + perm[0]], g1 = y[0 + perm[1]], g2 = y[0 + perm[2]], g3 = y[0 + perm[3]]; y[0] = g0; y[1] = g1; y[2] = g2; y[3] = g3; }
     y[1] -= A[1] * y[0];
     y[2] -= A[2] * y[0];
     y[3] -= A[3] * y[0];
@@ -1134,10 +1132,7 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
     { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
     { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
     { double acc = b[18]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
-    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
-    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    { double g0 = y[4 + perm[4]], g1 = y[4 + perm[5]], g2 = y[4 + perm[6]], g3 = y[4 + perm[7]]; y[4] = g0; y[5] = g1; y[6] = g2; y[7] = g3; }
     y[5] -= A[17] * y[4];
     y[6] -= A[18] * y[4];
     y[7] -= A[19] * y[4];
@@ -1155,7 +1150,7 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
     y[4] -= A[20] * y[5];
     y[4] *= 1.0 / A[16];
 }
-static void solve_crank_turn_1(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+static void solve_crank_turn_1(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     { double acc = b[5]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[4]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[7]; y[8] = acc; }
     { double acc = b[6]; acc -= off[24] * y[0]; acc -= off[25] * y[1]; acc -= off[26] * y[2]; acc -= off[27] * y[3]; acc -= off[28] * y[4]; acc -= off[29] * y[5]; acc -= off[30] * y[6]; acc -= off[31] * y[7]; y[9] = acc; }
     { double acc = b[7]; acc -= off[32] * y[0]; acc -= off[33] * y[1]; acc -= off[34] * y[2]; acc -= off[35] * y[3]; acc -= off[36] * y[4]; acc -= off[37] * y[5]; acc -= off[38] * y[6]; acc -= off[39] * y[7]; y[10] = acc; }
@@ -1172,22 +1167,7 @@ static void solve_crank_turn_1(const double *restrict A, const double *restrict 
     y[21] = b[20];
     y[22] = b[21];
     y[23] = b[22];
-    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
-    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
-    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
-    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
-    { int p = 8 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 8 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 8 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 8 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 8 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 8 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 8 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 8 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 8 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
-    { int p = 8 + piv[21]; double t = y[21]; y[21] = y[p]; y[p] = t; }
-    { int p = 8 + piv[22]; double t = y[22]; y[22] = y[p]; y[p] = t; }
-    { int p = 8 + piv[23]; double t = y[23]; y[23] = y[p]; y[p] = t; }
+    { double g0 = y[8 + perm[8]], g1 = y[8 + perm[9]], g2 = y[8 + perm[10]], g3 = y[8 + perm[11]], g4 = y[8 + perm[12]], g5 = y[8 + perm[13]], g6 = y[8 + perm[14]], g7 = y[8 + perm[15]], g8 = y[8 + perm[16]], g9 = y[8 + perm[17]], g10 = y[8 + perm[18]], g11 = y[8 + perm[19]], g12 = y[8 + perm[20]], g13 = y[8 + perm[21]], g14 = y[8 + perm[22]], g15 = y[8 + perm[23]]; y[8] = g0; y[9] = g1; y[10] = g2; y[11] = g3; y[12] = g4; y[13] = g5; y[14] = g6; y[15] = g7; y[16] = g8; y[17] = g9; y[18] = g10; y[19] = g11; y[20] = g12; y[21] = g13; y[22] = g14; y[23] = g15; }
     y[9] -= A[33] * y[8];
     y[10] -= A[34] * y[8];
     y[11] -= A[35] * y[8];
@@ -1447,10 +1427,13 @@ static void solve_crank_turn_1(const double *restrict A, const double *restrict 
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_crank_turn_0(A, off, piv, b, y);
-    solve_crank_turn_1(A, off, piv, b, y);
-    for (int j = 0; j < 24; ++j) x[col_order_crank_turn[j]] = y[j];
+static void solve_crank_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_crank_turn_0(A, off, perm, b, y);
+    solve_crank_turn_1(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[13] = y[8]; x[15] = y[9]; x[14] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[23] = y[13]; x[11] = y[14]; x[16] = y[15]; x[22] = y[16]; x[21] = y[17];
+    x[19] = y[18]; x[18] = y[19]; x[10] = y[20]; x[12] = y[21]; x[17] = y[22]; x[20] = y[23];
 }
 
 /* the first permuted row of each function above */
@@ -1458,16 +1441,19 @@ static const int solve_rows_crank_turn[] = {0, 8};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_crank_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_crank_turn[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_crank_turn_0(A, off, piv, b, y);
-    if (first <= 1) solve_crank_turn_1(A, off, piv, b, y);
-    for (int j = 0; j < 24; ++j) x[col_order_crank_turn[j]] = y[j];
+    if (first <= 0) solve_crank_turn_0(A, off, perm, b, y);
+    if (first <= 1) solve_crank_turn_1(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[13] = y[8]; x[15] = y[9]; x[14] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[23] = y[13]; x[11] = y[14]; x[16] = y[15]; x[22] = y[16]; x[21] = y[17];
+    x[19] = y[18]; x[18] = y[19]; x[10] = y[20]; x[12] = y[21]; x[17] = y[22]; x[20] = y[23];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_crank_turn) */
-static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
     { double acc = w[9]; acc -= A[48] * w[8]; w[9] = acc * (1.0 / A[49]); }
     { double acc = w[10]; acc -= A[64] * w[8]; acc -= A[65] * w[9]; w[10] = acc * (1.0 / A[66]); }
@@ -1499,22 +1485,7 @@ static void solve_transposed_crank_turn_0(const double *restrict A, const double
     { double acc = w[10]; acc -= A[67] * w[11]; acc -= A[68] * w[12]; acc -= A[69] * w[13]; acc -= A[70] * w[14]; acc -= A[71] * w[15]; acc -= A[72] * w[16]; acc -= A[73] * w[17]; acc -= A[74] * w[18]; acc -= A[75] * w[19]; acc -= A[76] * w[20]; acc -= A[77] * w[21]; acc -= A[78] * w[22]; acc -= A[79] * w[23]; w[10] = acc; }
     { double acc = w[9]; acc -= A[50] * w[10]; acc -= A[51] * w[11]; acc -= A[52] * w[12]; acc -= A[53] * w[13]; acc -= A[54] * w[14]; acc -= A[55] * w[15]; acc -= A[56] * w[16]; acc -= A[57] * w[17]; acc -= A[58] * w[18]; acc -= A[59] * w[19]; acc -= A[60] * w[20]; acc -= A[61] * w[21]; acc -= A[62] * w[22]; acc -= A[63] * w[23]; w[9] = acc; }
     { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; acc -= A[37] * w[13]; acc -= A[38] * w[14]; acc -= A[39] * w[15]; acc -= A[40] * w[16]; acc -= A[41] * w[17]; acc -= A[42] * w[18]; acc -= A[43] * w[19]; acc -= A[44] * w[20]; acc -= A[45] * w[21]; acc -= A[46] * w[22]; acc -= A[47] * w[23]; w[8] = acc; }
-    { int p = 8 + piv[23]; double t = w[23]; w[23] = w[p]; w[p] = t; }
-    { int p = 8 + piv[22]; double t = w[22]; w[22] = w[p]; w[p] = t; }
-    { int p = 8 + piv[21]; double t = w[21]; w[21] = w[p]; w[p] = t; }
-    { int p = 8 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 8 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 8 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 8 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 8 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 8 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 8 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 8 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 8 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
-    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
-    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
-    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
-    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { double g0 = w[8], g1 = w[9], g2 = w[10], g3 = w[11], g4 = w[12], g5 = w[13], g6 = w[14], g7 = w[15], g8 = w[16], g9 = w[17], g10 = w[18], g11 = w[19], g12 = w[20], g13 = w[21], g14 = w[22], g15 = w[23]; w[8 + perm[8]] = g0; w[8 + perm[9]] = g1; w[8 + perm[10]] = g2; w[8 + perm[11]] = g3; w[8 + perm[12]] = g4; w[8 + perm[13]] = g5; w[8 + perm[14]] = g6; w[8 + perm[15]] = g7; w[8 + perm[16]] = g8; w[8 + perm[17]] = g9; w[8 + perm[18]] = g10; w[8 + perm[19]] = g11; w[8 + perm[20]] = g12; w[8 + perm[21]] = g13; w[8 + perm[22]] = g14; w[8 + perm[23]] = g15; }
     w[0] -= off[16] * w[8];
     w[1] -= off[17] * w[8];
     w[2] -= off[18] * w[8];
@@ -1540,7 +1511,7 @@ static void solve_transposed_crank_turn_0(const double *restrict A, const double
     w[6] -= off[38] * w[10];
     w[7] -= off[39] * w[10];
 }
-static void solve_transposed_crank_turn_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_crank_turn_1(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[4]; w[4] = acc * (1.0 / A[16]); }
     { double acc = w[5]; acc -= A[20] * w[4]; w[5] = acc * (1.0 / A[21]); }
     { double acc = w[6]; acc -= A[24] * w[4]; acc -= A[25] * w[5]; w[6] = acc * (1.0 / A[26]); }
@@ -1548,10 +1519,7 @@ static void solve_transposed_crank_turn_1(const double *restrict A, const double
     { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
     { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
     { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
-    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
-    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { double g0 = w[4], g1 = w[5], g2 = w[6], g3 = w[7]; w[4 + perm[4]] = g0; w[4 + perm[5]] = g1; w[4 + perm[6]] = g2; w[4 + perm[7]] = g3; }
     w[0] -= off[0] * w[4];
     w[1] -= off[1] * w[4];
     w[2] -= off[2] * w[4];
@@ -1575,17 +1543,14 @@ static void solve_transposed_crank_turn_1(const double *restrict A, const double
     { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
     { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
     { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
-    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
-    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
-    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
-    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+    { double g0 = w[0], g1 = w[1], g2 = w[2], g3 = w[3]; w[0 + perm[0]] = g0; w[0 + perm[1]] = g1; w[0 + perm[2]] = g2; w[0 + perm[3]] = g3; }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_crank_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_crank_turn(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 24; ++j) w[j] = c[col_order_crank_turn[j]];
-    solve_transposed_crank_turn_0(A, off, piv, w);
-    solve_transposed_crank_turn_1(A, off, piv, w);
+    solve_transposed_crank_turn_0(A, off, perm, w);
+    solve_transposed_crank_turn_1(A, off, perm, w);
     for (int i = 0; i < 24; ++i) x[row_order_crank_turn[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -794,9 +794,10 @@ static const int diag_slot_crank_turn[] = {0, 1, 2, 3, 5, 4, 6, 16, 17, 15, 26, 
 static const int off_start_crank_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 21, 23};
 static const int off_col_crank_turn[] = {3, 4, 2, 3, 4, 0, 4, 10, 1, 3, 10, 5, 7, 12, 6, 9, 13, 5, 6, 8, 11, 5, 6};
 static const int off_value_crank_turn[] = {50, 51, 17, 15, 16, 9, 7, 8, 13, 11, 12, 22, 24, 21, 28, 30, 27, 35, 34, 36, 33, 41, 40};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_crank_turn) */
-static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_crank_turn) */
+static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -805,16 +806,14 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
     y[3] *= 1.0 / A[3];
     y[5] = b[15];
     y[6] = b[16];
-    { int p = 5 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 5 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[5 + perm[5]], g1 = y[5 + perm[6]]; y[5] = g0; y[6] = g1; }
     y[6] -= A[8] * y[5];
     y[6] *= 1.0 / A[10];
     y[5] -= A[9] * y[6];
@@ -837,10 +836,7 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
     { double acc = b[9]; acc -= off[14] * y[6]; acc -= off[15] * y[9]; acc -= off[16] * y[13]; y[15] = acc; }
     { double acc = b[10]; acc -= off[17] * y[5]; acc -= off[18] * y[6]; acc -= off[19] * y[8]; acc -= off[20] * y[11]; y[16] = acc; }
     { double acc = b[11]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; y[17] = acc; }
-    { int p = 14 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 14 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 14 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 14 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { double g0 = y[14 + perm[14]], g1 = y[14 + perm[15]], g2 = y[14 + perm[16]], g3 = y[14 + perm[17]]; y[14] = g0; y[15] = g1; y[16] = g2; y[17] = g3; }
     y[15] -= A[19] * y[14];
     y[16] -= A[20] * y[14];
     y[17] -= A[21] * y[14];
@@ -860,9 +856,11 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_crank_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 18; ++j) x[col_order_crank_turn[j]] = y[j];
+static void solve_crank_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_crank_turn_0(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[13] = y[5];
+    x[12] = y[6]; x[15] = y[7]; x[17] = y[8]; x[16] = y[9]; x[2] = y[10]; x[11] = y[11];
+    x[9] = y[12]; x[10] = y[13]; x[14] = y[14]; x[6] = y[15]; x[7] = y[16]; x[8] = y[17];
 }
 
 /* the first permuted row of each function above */
@@ -870,15 +868,17 @@ static const int solve_rows_crank_turn[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_crank_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_crank_turn[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_crank_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 18; ++j) x[col_order_crank_turn[j]] = y[j];
+    if (first <= 0) solve_crank_turn_0(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[13] = y[5];
+    x[12] = y[6]; x[15] = y[7]; x[17] = y[8]; x[16] = y[9]; x[2] = y[10]; x[11] = y[11];
+    x[9] = y[12]; x[10] = y[13]; x[14] = y[14]; x[6] = y[15]; x[7] = y[16]; x[8] = y[17];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_crank_turn) */
-static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[14]; w[14] = acc * (1.0 / A[18]); }
     { double acc = w[15]; acc -= A[22] * w[14]; w[15] = acc * (1.0 / A[23]); }
     { double acc = w[16]; acc -= A[26] * w[14]; acc -= A[27] * w[15]; w[16] = acc * (1.0 / A[28]); }
@@ -886,10 +886,7 @@ static void solve_transposed_crank_turn_0(const double *restrict A, const double
     { double acc = w[16]; acc -= A[29] * w[17]; w[16] = acc; }
     { double acc = w[15]; acc -= A[24] * w[16]; acc -= A[25] * w[17]; w[15] = acc; }
     { double acc = w[14]; acc -= A[19] * w[15]; acc -= A[20] * w[16]; acc -= A[21] * w[17]; w[14] = acc; }
-    { int p = 14 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 14 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 14 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 14 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { double g0 = w[14], g1 = w[15], g2 = w[16], g3 = w[17]; w[14 + perm[14]] = g0; w[14 + perm[15]] = g1; w[14 + perm[16]] = g2; w[14 + perm[17]] = g3; }
     w[5] -= off[11] * w[14];
     w[7] -= off[12] * w[14];
     w[12] -= off[13] * w[14];
@@ -923,22 +920,20 @@ static void solve_transposed_crank_turn_0(const double *restrict A, const double
     { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
     { double acc = w[6]; acc -= A[9] * w[5]; w[6] = acc * (1.0 / A[10]); }
     { double acc = w[5]; acc -= A[8] * w[6]; w[5] = acc; }
-    { int p = 5 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 5 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { double g0 = w[5], g1 = w[6]; w[5 + perm[5]] = g0; w[5 + perm[6]] = g1; }
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_crank_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_crank_turn(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 18; ++j) w[j] = c[col_order_crank_turn[j]];
-    solve_transposed_crank_turn_0(A, off, piv, w);
+    solve_transposed_crank_turn_0(A, off, perm, w);
     for (int i = 0; i < 18; ++i) x[row_order_crank_turn[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -776,9 +776,10 @@ static const int diag_slot_crank_turn[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 
 static const int off_start_crank_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 8, 13, 15, 17, 19, 19, 19, 19, 19, 19};
 static const int off_col_crank_turn[] = {0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 9, 10, 8, 11, 7, 12};
 static const int off_value_crank_turn[] = {11, 12, 13, 15, 16, 17, 18, 19, 21, 22, 23, 24, 25, 30, 27, 38, 33, 48, 43};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_crank_turn) */
-static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_crank_turn) */
+static void solve_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -789,10 +790,7 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
     y[4] = b[4];
     y[5] = b[17];
     y[6] = b[20];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]], g2 = y[3 + perm[5]], g3 = y[3 + perm[6]]; y[3] = g0; y[4] = g1; y[5] = g2; y[6] = g3; }
     y[4] -= A[4] * y[3];
     y[5] -= A[5] * y[3];
     y[6] -= A[6] * y[3];
@@ -829,14 +827,7 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
     y[18] = b[16];
     y[19] = b[18];
     y[20] = b[19];
-    { int p = 13 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 13 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 13 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 13 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 13 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 13 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 13 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 13 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
+    { double g0 = y[13 + perm[13]], g1 = y[13 + perm[14]], g2 = y[13 + perm[15]], g3 = y[13 + perm[16]], g4 = y[13 + perm[17]], g5 = y[13 + perm[18]], g6 = y[13 + perm[19]], g7 = y[13 + perm[20]]; y[13] = g0; y[14] = g1; y[15] = g2; y[16] = g3; y[17] = g4; y[18] = g5; y[19] = g6; y[20] = g7; }
     y[14] -= A[26] * y[13];
     y[15] -= A[27] * y[13];
     y[16] -= A[28] * y[13];
@@ -904,9 +895,12 @@ static void solve_crank_turn_0(const double *restrict A, const double *restrict 
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_crank_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 21; ++j) x[col_order_crank_turn[j]] = y[j];
+static void solve_crank_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_crank_turn_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[16] = y[7]; x[15] = y[8]; x[14] = y[9]; x[7] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[10] = y[13]; x[20] = y[14]; x[13] = y[15]; x[11] = y[16]; x[17] = y[17];
+    x[18] = y[18]; x[12] = y[19]; x[19] = y[20];
 }
 
 /* the first permuted row of each function above */
@@ -914,15 +908,18 @@ static const int solve_rows_crank_turn[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_crank_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_crank_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_crank_turn[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_crank_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 21; ++j) x[col_order_crank_turn[j]] = y[j];
+    if (first <= 0) solve_crank_turn_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[16] = y[7]; x[15] = y[8]; x[14] = y[9]; x[7] = y[10]; x[8] = y[11];
+    x[9] = y[12]; x[10] = y[13]; x[20] = y[14]; x[13] = y[15]; x[11] = y[16]; x[17] = y[17];
+    x[18] = y[18]; x[12] = y[19]; x[19] = y[20];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_crank_turn) */
-static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_crank_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[13]; w[13] = acc * (1.0 / A[25]); }
     { double acc = w[14]; acc -= A[33] * w[13]; w[14] = acc * (1.0 / A[34]); }
     { double acc = w[15]; acc -= A[41] * w[13]; acc -= A[42] * w[14]; w[15] = acc * (1.0 / A[43]); }
@@ -938,14 +935,7 @@ static void solve_transposed_crank_turn_0(const double *restrict A, const double
     { double acc = w[15]; acc -= A[44] * w[16]; acc -= A[45] * w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; acc -= A[48] * w[20]; w[15] = acc; }
     { double acc = w[14]; acc -= A[35] * w[15]; acc -= A[36] * w[16]; acc -= A[37] * w[17]; acc -= A[38] * w[18]; acc -= A[39] * w[19]; acc -= A[40] * w[20]; w[14] = acc; }
     { double acc = w[13]; acc -= A[26] * w[14]; acc -= A[27] * w[15]; acc -= A[28] * w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; w[13] = acc; }
-    { int p = 13 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 13 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 13 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 13 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 13 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 13 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 13 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 13 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
+    { double g0 = w[13], g1 = w[14], g2 = w[15], g3 = w[16], g4 = w[17], g5 = w[18], g6 = w[19], g7 = w[20]; w[13 + perm[13]] = g0; w[13 + perm[14]] = g1; w[13 + perm[15]] = g2; w[13 + perm[16]] = g3; w[13 + perm[17]] = g4; w[13 + perm[18]] = g5; w[13 + perm[19]] = g6; w[13 + perm[20]] = g7; }
     w[9] -= off[13] * w[13];
     w[10] -= off[14] * w[13];
     w[8] -= off[15] * w[14];
@@ -978,19 +968,16 @@ static void solve_transposed_crank_turn_0(const double *restrict A, const double
     { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
     { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
     { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
-    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4], g2 = w[5], g3 = w[6]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; w[3 + perm[5]] = g2; w[3 + perm[6]] = g3; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_crank_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_crank_turn(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 21; ++j) w[j] = c[col_order_crank_turn[j]];
-    solve_transposed_crank_turn_0(A, off, piv, w);
+    solve_transposed_crank_turn_0(A, off, perm, w);
     for (int i = 0; i < 21; ++i) x[row_order_crank_turn[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

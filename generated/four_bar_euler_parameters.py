@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_euler_parameters.h': 'be185641fd04fd5545b1d72583129673779e38fc50d5daed290dfdc84b534a6a', 'four_bar_euler_parameters.c': '782cbca65d501c196acf98dc9eac16178f4da577c82f147a5ddfe53049bcd42c'}
+C_FILES = {'four_bar_euler_parameters.h': 'be185641fd04fd5545b1d72583129673779e38fc50d5daed290dfdc84b534a6a', 'four_bar_euler_parameters.c': 'bc64055ff2edc77ede946e22c5b8c23d6604bb52d1ac89ca1be75ea930a21b3f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

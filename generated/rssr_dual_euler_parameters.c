@@ -989,17 +989,15 @@ static const int diag_slot_turn[] = {16, 28, 24, 20, 17, 29, 25, 21, 18, 30, 26,
 static const int off_start_turn[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 16, 16, 16, 16, 16, 24, 24, 24};
 static const int off_col_turn[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7};
 static const int off_value_turn[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 87, 86, 85, 84, 67, 66, 65, 64, 68, 71, 70, 69};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_turn) */
-static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_turn) */
+static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[3];
     y[1] = b[4];
     y[2] = b[11];
     y[3] = b[15];
-    { int p = 0 + piv[0]; double t = y[0]; y[0] = y[p]; y[p] = t; }
-    { int p = 0 + piv[1]; double t = y[1]; y[1] = y[p]; y[p] = t; }
-    { int p = 0 + piv[2]; double t = y[2]; y[2] = y[p]; y[p] = t; }
-    { int p = 0 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
+    { double g0 = y[0 + perm[0]], g1 = y[0 + perm[1]], g2 = y[0 + perm[2]], g3 = y[0 + perm[3]]; y[0] = g0; y[1] = g1; y[2] = g2; y[3] = g3; }
     y[1] -= A[1] * y[0];
     y[2] -= A[2] * y[0];
     y[3] -= A[3] * y[0];
@@ -1020,10 +1018,7 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
     { double acc = b[1]; acc -= off[4] * y[0]; acc -= off[5] * y[1]; acc -= off[6] * y[2]; acc -= off[7] * y[3]; y[5] = acc; }
     { double acc = b[2]; acc -= off[8] * y[0]; acc -= off[9] * y[1]; acc -= off[10] * y[2]; acc -= off[11] * y[3]; y[6] = acc; }
     { double acc = b[12]; acc -= off[12] * y[0]; acc -= off[13] * y[1]; acc -= off[14] * y[2]; acc -= off[15] * y[3]; y[7] = acc; }
-    { int p = 4 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 4 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 4 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
-    { int p = 4 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    { double g0 = y[4 + perm[4]], g1 = y[4 + perm[5]], g2 = y[4 + perm[6]], g3 = y[4 + perm[7]]; y[4] = g0; y[5] = g1; y[6] = g2; y[7] = g3; }
     y[5] -= A[17] * y[4];
     y[6] -= A[18] * y[4];
     y[7] -= A[19] * y[4];
@@ -1048,14 +1043,7 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
     { double acc = b[10]; acc -= off[16] * y[0]; acc -= off[17] * y[1]; acc -= off[18] * y[2]; acc -= off[19] * y[3]; acc -= off[20] * y[4]; acc -= off[21] * y[5]; acc -= off[22] * y[6]; acc -= off[23] * y[7]; y[13] = acc; }
     y[14] = b[13];
     y[15] = b[14];
-    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
-    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
-    { int p = 8 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
-    { int p = 8 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
-    { int p = 8 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 8 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 8 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 8 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
+    { double g0 = y[8 + perm[8]], g1 = y[8 + perm[9]], g2 = y[8 + perm[10]], g3 = y[8 + perm[11]], g4 = y[8 + perm[12]], g5 = y[8 + perm[13]], g6 = y[8 + perm[14]], g7 = y[8 + perm[15]]; y[8] = g0; y[9] = g1; y[10] = g2; y[11] = g3; y[12] = g4; y[13] = g5; y[14] = g6; y[15] = g7; }
     y[9] -= A[33] * y[8];
     y[10] -= A[34] * y[8];
     y[11] -= A[35] * y[8];
@@ -1123,9 +1111,11 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 16; ++j) x[col_order_turn[j]] = y[j];
+static void solve_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_turn_0(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[7] = y[5];
+    x[6] = y[6]; x[5] = y[7]; x[8] = y[8]; x[14] = y[9]; x[13] = y[10]; x[11] = y[11];
+    x[10] = y[12]; x[15] = y[13]; x[9] = y[14]; x[12] = y[15];
 }
 
 /* the first permuted row of each function above */
@@ -1133,15 +1123,17 @@ static const int solve_rows_turn[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_turn[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 16; ++j) x[col_order_turn[j]] = y[j];
+    if (first <= 0) solve_turn_0(A, off, perm, b, y);
+    x[3] = y[0]; x[2] = y[1]; x[1] = y[2]; x[0] = y[3]; x[4] = y[4]; x[7] = y[5];
+    x[6] = y[6]; x[5] = y[7]; x[8] = y[8]; x[14] = y[9]; x[13] = y[10]; x[11] = y[11];
+    x[10] = y[12]; x[15] = y[13]; x[9] = y[14]; x[12] = y[15];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_turn) */
-static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[8]; w[8] = acc * (1.0 / A[32]); }
     { double acc = w[9]; acc -= A[40] * w[8]; w[9] = acc * (1.0 / A[41]); }
     { double acc = w[10]; acc -= A[48] * w[8]; acc -= A[49] * w[9]; w[10] = acc * (1.0 / A[50]); }
@@ -1157,14 +1149,7 @@ static void solve_transposed_turn_0(const double *restrict A, const double *rest
     { double acc = w[10]; acc -= A[51] * w[11]; acc -= A[52] * w[12]; acc -= A[53] * w[13]; acc -= A[54] * w[14]; acc -= A[55] * w[15]; w[10] = acc; }
     { double acc = w[9]; acc -= A[42] * w[10]; acc -= A[43] * w[11]; acc -= A[44] * w[12]; acc -= A[45] * w[13]; acc -= A[46] * w[14]; acc -= A[47] * w[15]; w[9] = acc; }
     { double acc = w[8]; acc -= A[33] * w[9]; acc -= A[34] * w[10]; acc -= A[35] * w[11]; acc -= A[36] * w[12]; acc -= A[37] * w[13]; acc -= A[38] * w[14]; acc -= A[39] * w[15]; w[8] = acc; }
-    { int p = 8 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 8 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 8 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 8 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
-    { int p = 8 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
-    { int p = 8 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
-    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
-    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { double g0 = w[8], g1 = w[9], g2 = w[10], g3 = w[11], g4 = w[12], g5 = w[13], g6 = w[14], g7 = w[15]; w[8 + perm[8]] = g0; w[8 + perm[9]] = g1; w[8 + perm[10]] = g2; w[8 + perm[11]] = g3; w[8 + perm[12]] = g4; w[8 + perm[13]] = g5; w[8 + perm[14]] = g6; w[8 + perm[15]] = g7; }
     w[0] -= off[16] * w[13];
     w[1] -= off[17] * w[13];
     w[2] -= off[18] * w[13];
@@ -1180,10 +1165,7 @@ static void solve_transposed_turn_0(const double *restrict A, const double *rest
     { double acc = w[6]; acc -= A[27] * w[7]; w[6] = acc; }
     { double acc = w[5]; acc -= A[22] * w[6]; acc -= A[23] * w[7]; w[5] = acc; }
     { double acc = w[4]; acc -= A[17] * w[5]; acc -= A[18] * w[6]; acc -= A[19] * w[7]; w[4] = acc; }
-    { int p = 4 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
-    { int p = 4 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 4 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 4 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
+    { double g0 = w[4], g1 = w[5], g2 = w[6], g3 = w[7]; w[4 + perm[4]] = g0; w[4 + perm[5]] = g1; w[4 + perm[6]] = g2; w[4 + perm[7]] = g3; }
     w[0] -= off[0] * w[4];
     w[1] -= off[1] * w[4];
     w[2] -= off[2] * w[4];
@@ -1207,16 +1189,13 @@ static void solve_transposed_turn_0(const double *restrict A, const double *rest
     { double acc = w[2]; acc -= A[11] * w[3]; w[2] = acc; }
     { double acc = w[1]; acc -= A[6] * w[2]; acc -= A[7] * w[3]; w[1] = acc; }
     { double acc = w[0]; acc -= A[1] * w[1]; acc -= A[2] * w[2]; acc -= A[3] * w[3]; w[0] = acc; }
-    { int p = 0 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
-    { int p = 0 + piv[2]; double t = w[2]; w[2] = w[p]; w[p] = t; }
-    { int p = 0 + piv[1]; double t = w[1]; w[1] = w[p]; w[p] = t; }
-    { int p = 0 + piv[0]; double t = w[0]; w[0] = w[p]; w[p] = t; }
+    { double g0 = w[0], g1 = w[1], g2 = w[2], g3 = w[3]; w[0 + perm[0]] = g0; w[0 + perm[1]] = g1; w[0 + perm[2]] = g2; w[0 + perm[3]] = g3; }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_turn(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 16; ++j) w[j] = c[col_order_turn[j]];
-    solve_transposed_turn_0(A, off, piv, w);
+    solve_transposed_turn_0(A, off, perm, w);
     for (int i = 0; i < 16; ++i) x[row_order_turn[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

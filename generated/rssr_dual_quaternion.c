@@ -692,9 +692,10 @@ static const int diag_slot_turn[] = {0, 1, 2, 3, 5, 4, 6, 7, 8, 9, 10, 12, 11, 1
 static const int off_start_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 13};
 static const int off_col_turn[] = {3, 4, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
 static const int off_value_turn[] = {26, 27, 17, 18, 19, 14, 15, 23, 24, 25, 21, 22, 16};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_turn) */
-static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_turn) */
+static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -703,8 +704,7 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -717,8 +717,7 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
     y[7] *= 1.0 / A[9];
     y[8] = b[8];
     y[9] = b[9];
-    { int p = 8 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
-    { int p = 8 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
+    { double g0 = y[8 + perm[8]], g1 = y[8 + perm[9]]; y[8] = g0; y[9] = g1; }
     y[9] -= A[11] * y[8];
     y[9] *= 1.0 / A[13];
     y[8] -= A[12] * y[9];
@@ -730,9 +729,10 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 12; ++j) x[col_order_turn[j]] = y[j];
+static void solve_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_turn_0(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[9] = y[5];
+    x[10] = y[6]; x[11] = y[7]; x[7] = y[8]; x[8] = y[9]; x[2] = y[10]; x[6] = y[11];
 }
 
 /* the first permuted row of each function above */
@@ -740,15 +740,16 @@ static const int solve_rows_turn[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_turn[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 12; ++j) x[col_order_turn[j]] = y[j];
+    if (first <= 0) solve_turn_0(A, off, perm, b, y);
+    x[3] = y[0]; x[4] = y[1]; x[5] = y[2]; x[0] = y[3]; x[1] = y[4]; x[9] = y[5];
+    x[10] = y[6]; x[11] = y[7]; x[7] = y[8]; x[8] = y[9]; x[2] = y[10]; x[6] = y[11];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_turn) */
-static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[11]; w[11] = acc * (1.0 / A[15]); }
     w[0] -= off[2] * w[11];
     w[1] -= off[3] * w[11];
@@ -767,25 +768,23 @@ static void solve_transposed_turn_0(const double *restrict A, const double *rest
     { double acc = w[8]; w[8] = acc * (1.0 / A[10]); }
     { double acc = w[9]; acc -= A[12] * w[8]; w[9] = acc * (1.0 / A[13]); }
     { double acc = w[8]; acc -= A[11] * w[9]; w[8] = acc; }
-    { int p = 8 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
-    { int p = 8 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
+    { double g0 = w[8], g1 = w[9]; w[8 + perm[8]] = g0; w[8 + perm[9]] = g1; }
     { double acc = w[7]; w[7] = acc * (1.0 / A[9]); }
     { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
     { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_turn(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 12; ++j) w[j] = c[col_order_turn[j]];
-    solve_transposed_turn_0(A, off, piv, w);
+    solve_transposed_turn_0(A, off, perm, w);
     for (int i = 0; i < 12; ++i) x[row_order_turn[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -699,9 +699,10 @@ static const int diag_slot_turn[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 19, 20
 static const int off_start_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 10, 10};
 static const int off_col_turn[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
 static const int off_value_turn[] = {22, 23, 24, 25, 26, 27, 28, 29, 30, 31};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_turn) */
-static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_turn) */
+static void solve_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -712,10 +713,7 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
     y[4] = b[4];
     y[5] = b[11];
     y[6] = b[13];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]], g2 = y[3 + perm[5]], g3 = y[3 + perm[6]]; y[3] = g0; y[4] = g1; y[5] = g2; y[6] = g3; }
     y[4] -= A[4] * y[3];
     y[5] -= A[5] * y[3];
     y[6] -= A[6] * y[3];
@@ -742,10 +740,7 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
     y[11] = b[9];
     { double acc = b[10]; acc -= off[0] * y[0]; acc -= off[1] * y[1]; acc -= off[2] * y[2]; acc -= off[3] * y[3]; acc -= off[4] * y[4]; acc -= off[5] * y[5]; acc -= off[6] * y[6]; acc -= off[7] * y[7]; acc -= off[8] * y[8]; acc -= off[9] * y[9]; y[12] = acc; }
     y[13] = b[12];
-    { int p = 10 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
-    { int p = 10 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
-    { int p = 10 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 10 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
+    { double g0 = y[10 + perm[10]], g1 = y[10 + perm[11]], g2 = y[10 + perm[12]], g3 = y[10 + perm[13]]; y[10] = g0; y[11] = g1; y[12] = g2; y[13] = g3; }
     y[11] -= A[23] * y[10];
     y[12] -= A[24] * y[10];
     y[13] -= A[25] * y[10];
@@ -765,9 +760,11 @@ static void solve_turn_0(const double *restrict A, const double *restrict off, c
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 14; ++j) x[col_order_turn[j]] = y[j];
+static void solve_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_turn_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[8] = y[8]; x[9] = y[9]; x[10] = y[10]; x[11] = y[11];
+    x[13] = y[12]; x[12] = y[13];
 }
 
 /* the first permuted row of each function above */
@@ -775,15 +772,17 @@ static const int solve_rows_turn[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_turn(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_turn(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_turn[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_turn_0(A, off, piv, b, y);
-    for (int j = 0; j < 14; ++j) x[col_order_turn[j]] = y[j];
+    if (first <= 0) solve_turn_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[7] = y[7]; x[8] = y[8]; x[9] = y[9]; x[10] = y[10]; x[11] = y[11];
+    x[13] = y[12]; x[12] = y[13];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_turn) */
-static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_turn_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
     { double acc = w[11]; acc -= A[26] * w[10]; w[11] = acc * (1.0 / A[27]); }
     { double acc = w[12]; acc -= A[30] * w[10]; acc -= A[31] * w[11]; w[12] = acc * (1.0 / A[32]); }
@@ -791,10 +790,7 @@ static void solve_transposed_turn_0(const double *restrict A, const double *rest
     { double acc = w[12]; acc -= A[33] * w[13]; w[12] = acc; }
     { double acc = w[11]; acc -= A[28] * w[12]; acc -= A[29] * w[13]; w[11] = acc; }
     { double acc = w[10]; acc -= A[23] * w[11]; acc -= A[24] * w[12]; acc -= A[25] * w[13]; w[10] = acc; }
-    { int p = 10 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 10 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
-    { int p = 10 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
-    { int p = 10 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    { double g0 = w[10], g1 = w[11], g2 = w[12], g3 = w[13]; w[10 + perm[10]] = g0; w[10 + perm[11]] = g1; w[10 + perm[12]] = g2; w[10 + perm[13]] = g3; }
     w[0] -= off[0] * w[12];
     w[1] -= off[1] * w[12];
     w[2] -= off[2] * w[12];
@@ -815,19 +811,16 @@ static void solve_transposed_turn_0(const double *restrict A, const double *rest
     { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
     { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
     { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
-    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4], g2 = w[5], g3 = w[6]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; w[3 + perm[5]] = g2; w[3 + perm[6]] = g3; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_turn(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_turn(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 14; ++j) w[j] = c[col_order_turn[j]];
-    solve_transposed_turn_0(A, off, piv, w);
+    solve_transposed_turn_0(A, off, perm, w);
     for (int i = 0; i < 14; ++i) x[row_order_turn[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_euler_parameters.h': 'd98976895b058b7ce2a22b1a7a3db75d5588992a58cab47808768ed9d44c8ca5', 'slider_crank_dual_euler_parameters.c': 'e0e2ba239f3eddefc195d7f070a933b2d3e2c74e4e603fbd3e5f7863365e475b'}
+C_FILES = {'slider_crank_dual_euler_parameters.h': 'd98976895b058b7ce2a22b1a7a3db75d5588992a58cab47808768ed9d44c8ca5', 'slider_crank_dual_euler_parameters.c': '0f2b25e2f5886ad7577fb9403859474feb1db605f3c931d5c76cced7f4305f54'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

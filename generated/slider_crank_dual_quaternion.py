@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_quaternion.h': '3c5886074a0f8b1df5e37581ca60b82c80f1a25788cd4d549f1e8b1f3ddbd80a', 'slider_crank_dual_quaternion.c': '9618a3ff0a43344d389fb0648720e90b38c55f72bde095a1ee1a420aac7aa76d'}
+C_FILES = {'slider_crank_dual_quaternion.h': '3c5886074a0f8b1df5e37581ca60b82c80f1a25788cd4d549f1e8b1f3ddbd80a', 'slider_crank_dual_quaternion.c': '2d76e7a7c9631edcc0effc9713c6e5664a3aecf6775697922699108bcec933c7'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -876,9 +876,10 @@ static const int diag_slot_run[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 37, 38,
 static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 8, 13, 15, 17, 21, 21, 24};
 static const int off_col_run[] = {0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 12, 14, 11, 15, 7, 8, 9, 10, 13, 16, 18};
 static const int off_value_run[] = {11, 12, 13, 15, 16, 17, 18, 19, 21, 22, 23, 24, 25, 36, 31, 42, 37, 47, 48, 49, 50, 27, 28, 29};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_run) */
-static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_run) */
+static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -889,10 +890,7 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
     y[4] = b[4];
     y[5] = b[17];
     y[6] = b[20];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]], g2 = y[3 + perm[5]], g3 = y[3 + perm[6]]; y[3] = g0; y[4] = g1; y[5] = g2; y[6] = g3; }
     y[4] -= A[4] * y[3];
     y[5] -= A[5] * y[3];
     y[6] -= A[6] * y[3];
@@ -913,10 +911,7 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
     y[8] = b[13];
     y[9] = b[16];
     y[10] = b[19];
-    { int p = 7 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
-    { int p = 7 + piv[8]; double t = y[8]; y[8] = y[p]; y[p] = t; }
-    { int p = 7 + piv[9]; double t = y[9]; y[9] = y[p]; y[p] = t; }
-    { int p = 7 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
+    { double g0 = y[7 + perm[7]], g1 = y[7 + perm[8]], g2 = y[7 + perm[9]], g3 = y[7 + perm[10]]; y[7] = g0; y[8] = g1; y[9] = g2; y[10] = g3; }
     y[8] -= A[20] * y[7];
     y[9] -= A[21] * y[7];
     y[10] -= A[22] * y[7];
@@ -947,10 +942,7 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
     { double acc = b[10]; acc -= off[15] * y[11]; acc -= off[16] * y[15]; y[17] = acc; }
     { double acc = b[11]; acc -= off[17] * y[7]; acc -= off[18] * y[8]; acc -= off[19] * y[9]; acc -= off[20] * y[10]; y[18] = acc; }
     y[19] = b[18];
-    { int p = 16 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 16 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 16 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 16 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
+    { double g0 = y[16 + perm[16]], g1 = y[16 + perm[17]], g2 = y[16 + perm[18]], g3 = y[16 + perm[19]]; y[16] = g0; y[17] = g1; y[18] = g2; y[19] = g3; }
     y[17] -= A[41] * y[16];
     y[18] -= A[42] * y[16];
     y[19] -= A[43] * y[16];
@@ -972,9 +964,12 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_run_0(A, off, piv, b, y);
-    for (int j = 0; j < 21; ++j) x[col_order_run[j]] = y[j];
+static void solve_run(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_run_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[17] = y[7]; x[18] = y[8]; x[19] = y[9]; x[20] = y[10]; x[16] = y[11];
+    x[15] = y[12]; x[7] = y[13]; x[8] = y[14]; x[9] = y[15]; x[10] = y[16]; x[13] = y[17];
+    x[11] = y[18]; x[12] = y[19]; x[14] = y[20];
 }
 
 /* the first permuted row of each function above */
@@ -982,15 +977,18 @@ static const int solve_rows_run[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_run(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_run[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_run_0(A, off, piv, b, y);
-    for (int j = 0; j < 21; ++j) x[col_order_run[j]] = y[j];
+    if (first <= 0) solve_run_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[5] = y[5];
+    x[6] = y[6]; x[17] = y[7]; x[18] = y[8]; x[19] = y[9]; x[20] = y[10]; x[16] = y[11];
+    x[15] = y[12]; x[7] = y[13]; x[8] = y[14]; x[9] = y[15]; x[10] = y[16]; x[13] = y[17];
+    x[11] = y[18]; x[12] = y[19]; x[14] = y[20];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_run) */
-static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[20]; w[20] = acc * (1.0 / A[56]); }
     w[13] -= off[21] * w[20];
     w[16] -= off[22] * w[20];
@@ -1002,10 +1000,7 @@ static void solve_transposed_run_0(const double *restrict A, const double *restr
     { double acc = w[18]; acc -= A[51] * w[19]; w[18] = acc; }
     { double acc = w[17]; acc -= A[46] * w[18]; acc -= A[47] * w[19]; w[17] = acc; }
     { double acc = w[16]; acc -= A[41] * w[17]; acc -= A[42] * w[18]; acc -= A[43] * w[19]; w[16] = acc; }
-    { int p = 16 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 16 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 16 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 16 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
+    { double g0 = w[16], g1 = w[17], g2 = w[18], g3 = w[19]; w[16 + perm[16]] = g0; w[16 + perm[17]] = g1; w[16 + perm[18]] = g2; w[16 + perm[19]] = g3; }
     w[12] -= off[13] * w[16];
     w[14] -= off[14] * w[16];
     w[11] -= off[15] * w[17];
@@ -1039,10 +1034,7 @@ static void solve_transposed_run_0(const double *restrict A, const double *restr
     { double acc = w[9]; acc -= A[30] * w[10]; w[9] = acc; }
     { double acc = w[8]; acc -= A[25] * w[9]; acc -= A[26] * w[10]; w[8] = acc; }
     { double acc = w[7]; acc -= A[20] * w[8]; acc -= A[21] * w[9]; acc -= A[22] * w[10]; w[7] = acc; }
-    { int p = 7 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
-    { int p = 7 + piv[9]; double t = w[9]; w[9] = w[p]; w[p] = t; }
-    { int p = 7 + piv[8]; double t = w[8]; w[8] = w[p]; w[p] = t; }
-    { int p = 7 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
+    { double g0 = w[7], g1 = w[8], g2 = w[9], g3 = w[10]; w[7 + perm[7]] = g0; w[7 + perm[8]] = g1; w[7 + perm[9]] = g2; w[7 + perm[10]] = g3; }
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
     { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
@@ -1050,19 +1042,16 @@ static void solve_transposed_run_0(const double *restrict A, const double *restr
     { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
     { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
     { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
-    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4], g2 = w[5], g3 = w[6]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; w[3 + perm[5]] = g2; w[3 + perm[6]] = g3; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_run(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_run(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 21; ++j) w[j] = c[col_order_run[j]];
-    solve_transposed_run_0(A, off, piv, w);
+    solve_transposed_run_0(A, off, perm, w);
     for (int i = 0; i < 21; ++i) x[row_order_run[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -1100,9 +1089,10 @@ static const int diag_slot_dead_centre[] = {0, 1, 2, 22, 33, 55, 121, 23, 34, 56
 static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 10, 10, 10};
 static const int off_col_dead_centre[] = {0, 1, 2, 8, 9, 7, 3, 4, 5, 6};
 static const int off_value_dead_centre[] = {11, 15, 21, 30, 36, 42, 47, 48, 49, 50};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_dead_centre) */
-static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_dead_centre) */
+static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -1113,10 +1103,7 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
     y[4] = b[13];
     y[5] = b[16];
     y[6] = b[19];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
-    { int p = 3 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 3 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]], g2 = y[3 + perm[5]], g3 = y[3 + perm[6]]; y[3] = g0; y[4] = g1; y[5] = g2; y[6] = g3; }
     y[4] -= A[4] * y[3];
     y[5] -= A[5] * y[3];
     y[6] -= A[6] * y[3];
@@ -1150,17 +1137,7 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
     { double acc = b[11]; acc -= off[6] * y[3]; acc -= off[7] * y[4]; acc -= off[8] * y[5]; acc -= off[9] * y[6]; y[18] = acc; }
     y[19] = b[17];
     y[20] = b[18];
-    { int p = 10 + piv[10]; double t = y[10]; y[10] = y[p]; y[p] = t; }
-    { int p = 10 + piv[11]; double t = y[11]; y[11] = y[p]; y[p] = t; }
-    { int p = 10 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 10 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 10 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 10 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 10 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 10 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
-    { int p = 10 + piv[18]; double t = y[18]; y[18] = y[p]; y[p] = t; }
-    { int p = 10 + piv[19]; double t = y[19]; y[19] = y[p]; y[p] = t; }
-    { int p = 10 + piv[20]; double t = y[20]; y[20] = y[p]; y[p] = t; }
+    { double g0 = y[10 + perm[10]], g1 = y[10 + perm[11]], g2 = y[10 + perm[12]], g3 = y[10 + perm[13]], g4 = y[10 + perm[14]], g5 = y[10 + perm[15]], g6 = y[10 + perm[16]], g7 = y[10 + perm[17]], g8 = y[10 + perm[18]], g9 = y[10 + perm[19]], g10 = y[10 + perm[20]]; y[10] = g0; y[11] = g1; y[12] = g2; y[13] = g3; y[14] = g4; y[15] = g5; y[16] = g6; y[17] = g7; y[18] = g8; y[19] = g9; y[20] = g10; }
     y[11] -= A[23] * y[10];
     y[12] -= A[24] * y[10];
     y[13] -= A[25] * y[10];
@@ -1285,9 +1262,12 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_dead_centre_0(A, off, piv, b, y);
-    for (int j = 0; j < 21; ++j) x[col_order_dead_centre[j]] = y[j];
+static void solve_dead_centre(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_dead_centre_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[17] = y[3]; x[18] = y[4]; x[19] = y[5];
+    x[20] = y[6]; x[16] = y[7]; x[14] = y[8]; x[15] = y[9]; x[3] = y[10]; x[4] = y[11];
+    x[7] = y[12]; x[5] = y[13]; x[9] = y[14]; x[10] = y[15]; x[8] = y[16]; x[13] = y[17];
+    x[11] = y[18]; x[6] = y[19]; x[12] = y[20];
 }
 
 /* the first permuted row of each function above */
@@ -1295,15 +1275,18 @@ static const int solve_rows_dead_centre[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_dead_centre(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_dead_centre[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_dead_centre_0(A, off, piv, b, y);
-    for (int j = 0; j < 21; ++j) x[col_order_dead_centre[j]] = y[j];
+    if (first <= 0) solve_dead_centre_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[17] = y[3]; x[18] = y[4]; x[19] = y[5];
+    x[20] = y[6]; x[16] = y[7]; x[14] = y[8]; x[15] = y[9]; x[3] = y[10]; x[4] = y[11];
+    x[7] = y[12]; x[5] = y[13]; x[9] = y[14]; x[10] = y[15]; x[8] = y[16]; x[13] = y[17];
+    x[11] = y[18]; x[6] = y[19]; x[12] = y[20];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_dead_centre) */
-static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[10]; w[10] = acc * (1.0 / A[22]); }
     { double acc = w[11]; acc -= A[33] * w[10]; w[11] = acc * (1.0 / A[34]); }
     { double acc = w[12]; acc -= A[44] * w[10]; acc -= A[45] * w[11]; w[12] = acc * (1.0 / A[46]); }
@@ -1325,17 +1308,7 @@ static void solve_transposed_dead_centre_0(const double *restrict A, const doubl
     { double acc = w[12]; acc -= A[47] * w[13]; acc -= A[48] * w[14]; acc -= A[49] * w[15]; acc -= A[50] * w[16]; acc -= A[51] * w[17]; acc -= A[52] * w[18]; acc -= A[53] * w[19]; acc -= A[54] * w[20]; w[12] = acc; }
     { double acc = w[11]; acc -= A[35] * w[12]; acc -= A[36] * w[13]; acc -= A[37] * w[14]; acc -= A[38] * w[15]; acc -= A[39] * w[16]; acc -= A[40] * w[17]; acc -= A[41] * w[18]; acc -= A[42] * w[19]; acc -= A[43] * w[20]; w[11] = acc; }
     { double acc = w[10]; acc -= A[23] * w[11]; acc -= A[24] * w[12]; acc -= A[25] * w[13]; acc -= A[26] * w[14]; acc -= A[27] * w[15]; acc -= A[28] * w[16]; acc -= A[29] * w[17]; acc -= A[30] * w[18]; acc -= A[31] * w[19]; acc -= A[32] * w[20]; w[10] = acc; }
-    { int p = 10 + piv[20]; double t = w[20]; w[20] = w[p]; w[p] = t; }
-    { int p = 10 + piv[19]; double t = w[19]; w[19] = w[p]; w[p] = t; }
-    { int p = 10 + piv[18]; double t = w[18]; w[18] = w[p]; w[p] = t; }
-    { int p = 10 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 10 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 10 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 10 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 10 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 10 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
-    { int p = 10 + piv[11]; double t = w[11]; w[11] = w[p]; w[p] = t; }
-    { int p = 10 + piv[10]; double t = w[10]; w[10] = w[p]; w[p] = t; }
+    { double g0 = w[10], g1 = w[11], g2 = w[12], g3 = w[13], g4 = w[14], g5 = w[15], g6 = w[16], g7 = w[17], g8 = w[18], g9 = w[19], g10 = w[20]; w[10 + perm[10]] = g0; w[10 + perm[11]] = g1; w[10 + perm[12]] = g2; w[10 + perm[13]] = g3; w[10 + perm[14]] = g4; w[10 + perm[15]] = g5; w[10 + perm[16]] = g6; w[10 + perm[17]] = g7; w[10 + perm[18]] = g8; w[10 + perm[19]] = g9; w[10 + perm[20]] = g10; }
     w[0] -= off[0] * w[12];
     w[1] -= off[1] * w[13];
     w[2] -= off[2] * w[14];
@@ -1349,9 +1322,6 @@ static void solve_transposed_dead_centre_0(const double *restrict A, const doubl
     { double acc = w[9]; w[9] = acc * (1.0 / A[21]); }
     { double acc = w[8]; w[8] = acc * (1.0 / A[20]); }
     { double acc = w[7]; w[7] = acc * (1.0 / A[19]); }
-}
-static void solve_transposed_dead_centre_1(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
-    (void)off;
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[7] * w[3]; w[4] = acc * (1.0 / A[8]); }
     { double acc = w[5]; acc -= A[11] * w[3]; acc -= A[12] * w[4]; w[5] = acc * (1.0 / A[13]); }
@@ -1359,20 +1329,16 @@ static void solve_transposed_dead_centre_1(const double *restrict A, const doubl
     { double acc = w[5]; acc -= A[14] * w[6]; w[5] = acc; }
     { double acc = w[4]; acc -= A[9] * w[5]; acc -= A[10] * w[6]; w[4] = acc; }
     { double acc = w[3]; acc -= A[4] * w[4]; acc -= A[5] * w[5]; acc -= A[6] * w[6]; w[3] = acc; }
-    { int p = 3 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 3 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4], g2 = w[5], g3 = w[6]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; w[3 + perm[5]] = g2; w[3 + perm[6]] = g3; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_dead_centre(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_dead_centre(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 21; ++j) w[j] = c[col_order_dead_centre[j]];
-    solve_transposed_dead_centre_0(A, off, piv, w);
-    solve_transposed_dead_centre_1(A, off, piv, w);
+    solve_transposed_dead_centre_0(A, off, perm, w);
     for (int i = 0; i < 21; ++i) x[row_order_dead_centre[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_euler_parameters.h': '1109466c54a5aac0e4819ae848f4e31dec53e4adf1b417fa54ed1702914c5219', 'slider_crank_euler_parameters.c': 'bdd2e08a977ee8c1784c6ff0a37653c4c3b32db8dad8ae38b05c17f4c801d2ab'}
+C_FILES = {'slider_crank_euler_parameters.h': '1109466c54a5aac0e4819ae848f4e31dec53e4adf1b417fa54ed1702914c5219', 'slider_crank_euler_parameters.c': 'e7140658fd09796c4e917e72759485676f49c26a67f3f1a282ac743b7e865885'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -841,9 +841,10 @@ static const int diag_slot_run[] = {0, 1, 2, 3, 5, 4, 6, 16, 17, 14, 27, 18, 24,
 static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 5, 6, 9, 12, 14, 16, 19, 22};
 static const int off_col_run[] = {3, 4, 2, 3, 4, 6, 0, 4, 9, 1, 3, 9, 8, 13, 7, 10, 5, 6, 11, 12, 15, 16};
 static const int off_value_run[] = {45, 46, 15, 16, 17, 44, 7, 8, 9, 11, 12, 13, 26, 23, 30, 27, 35, 36, 34, 19, 20, 21};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_run) */
-static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_run) */
+static void solve_run_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -852,16 +853,14 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
     y[3] *= 1.0 / A[3];
     y[5] = b[12];
     y[6] = b[13];
-    { int p = 5 + piv[5]; double t = y[5]; y[5] = y[p]; y[p] = t; }
-    { int p = 5 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
+    { double g0 = y[5 + perm[5]], g1 = y[5 + perm[6]]; y[5] = g0; y[6] = g1; }
     y[6] -= A[8] * y[5];
     y[6] *= 1.0 / A[10];
     y[5] -= A[9] * y[6];
@@ -883,9 +882,7 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
     { double acc = b[9]; acc -= off[12] * y[8]; acc -= off[13] * y[13]; y[14] = acc; }
     { double acc = b[10]; acc -= off[14] * y[7]; acc -= off[15] * y[10]; y[15] = acc; }
     { double acc = b[11]; acc -= off[16] * y[5]; acc -= off[17] * y[6]; acc -= off[18] * y[11]; y[16] = acc; }
-    { int p = 14 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 14 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 14 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
+    { double g0 = y[14 + perm[14]], g1 = y[14 + perm[15]], g2 = y[14 + perm[16]]; y[14] = g0; y[15] = g1; y[16] = g2; }
     y[15] -= A[19] * y[14];
     y[16] -= A[20] * y[14];
     y[16] -= A[23] * y[15];
@@ -900,9 +897,11 @@ static void solve_run_0(const double *restrict A, const double *restrict off, co
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_run_0(A, off, piv, b, y);
-    for (int j = 0; j < 18; ++j) x[col_order_run[j]] = y[j];
+static void solve_run(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_run_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[16] = y[5];
+    x[17] = y[6]; x[14] = y[7]; x[13] = y[8]; x[5] = y[9]; x[8] = y[10]; x[15] = y[11];
+    x[6] = y[12]; x[7] = y[13]; x[9] = y[14]; x[10] = y[15]; x[11] = y[16]; x[12] = y[17];
 }
 
 /* the first permuted row of each function above */
@@ -910,15 +909,17 @@ static const int solve_rows_run[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_run(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_run(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_run[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_run_0(A, off, piv, b, y);
-    for (int j = 0; j < 18; ++j) x[col_order_run[j]] = y[j];
+    if (first <= 0) solve_run_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[16] = y[5];
+    x[17] = y[6]; x[14] = y[7]; x[13] = y[8]; x[5] = y[9]; x[8] = y[10]; x[15] = y[11];
+    x[6] = y[12]; x[7] = y[13]; x[9] = y[14]; x[10] = y[15]; x[11] = y[16]; x[12] = y[17];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_run) */
-static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_run_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[17]; w[17] = acc * (1.0 / A[27]); }
     w[12] -= off[19] * w[17];
     w[15] -= off[20] * w[17];
@@ -928,9 +929,7 @@ static void solve_transposed_run_0(const double *restrict A, const double *restr
     { double acc = w[16]; acc -= A[24] * w[14]; acc -= A[25] * w[15]; w[16] = acc * (1.0 / A[26]); }
     { double acc = w[15]; acc -= A[23] * w[16]; w[15] = acc; }
     { double acc = w[14]; acc -= A[19] * w[15]; acc -= A[20] * w[16]; w[14] = acc; }
-    { int p = 14 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 14 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 14 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
+    { double g0 = w[14], g1 = w[15], g2 = w[16]; w[14 + perm[14]] = g0; w[14 + perm[15]] = g1; w[14 + perm[16]] = g2; }
     w[8] -= off[12] * w[14];
     w[13] -= off[13] * w[14];
     w[7] -= off[14] * w[15];
@@ -960,22 +959,20 @@ static void solve_transposed_run_0(const double *restrict A, const double *restr
     { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
     { double acc = w[6]; acc -= A[9] * w[5]; w[6] = acc * (1.0 / A[10]); }
     { double acc = w[5]; acc -= A[8] * w[6]; w[5] = acc; }
-    { int p = 5 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
-    { int p = 5 + piv[5]; double t = w[5]; w[5] = w[p]; w[p] = t; }
+    { double g0 = w[5], g1 = w[6]; w[5 + perm[5]] = g0; w[5 + perm[6]] = g1; }
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_run(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_run(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 18; ++j) w[j] = c[col_order_run[j]];
-    solve_transposed_run_0(A, off, piv, w);
+    solve_transposed_run_0(A, off, perm, w);
     for (int i = 0; i < 18; ++i) x[row_order_run[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */
@@ -1013,9 +1010,10 @@ static const int diag_slot_dead_centre[] = {0, 1, 2, 3, 5, 4, 6, 16, 28, 17, 23,
 static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 4, 6, 8, 9, 10, 12, 15};
 static const int off_col_dead_centre[] = {7, 2, 3, 4, 0, 4, 1, 3, 5, 9, 8, 11, 6, 7, 10};
 static const int off_value_dead_centre[] = {44, 15, 16, 17, 7, 8, 11, 12, 22, 26, 30, 27, 35, 36, 34};
-/* y = Phi_q^-1 b in the plan's order from the factors: the block solve of this plan written out, in
- * pieces of consecutive blocks (every case with this plan calls them through solve_dead_centre) */
-static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, const double *b, double *restrict y) {
+/* y = Phi_q^-1 b in the plan's order from the factors (perm: the blocks' row permutations, kinegen_solver.perms):
+ * the block solve of this plan written out, in pieces of consecutive blocks (every case with this plan calls
+ * them through solve_dead_centre) */
+static void solve_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict perm, const double *b, double *restrict y) {
     y[0] = b[0];
     y[0] *= 1.0 / A[0];
     y[1] = b[1];
@@ -1024,8 +1022,7 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
     y[2] *= 1.0 / A[2];
     y[3] = b[3];
     y[4] = b[4];
-    { int p = 3 + piv[3]; double t = y[3]; y[3] = y[p]; y[p] = t; }
-    { int p = 3 + piv[4]; double t = y[4]; y[4] = y[p]; y[p] = t; }
+    { double g0 = y[3 + perm[3]], g1 = y[3 + perm[4]]; y[3] = g0; y[4] = g1; }
     y[4] -= A[4] * y[3];
     y[4] *= 1.0 / A[6];
     y[3] -= A[5] * y[4];
@@ -1034,8 +1031,7 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
     y[5] *= 1.0 / A[7];
     y[6] = b[12];
     y[7] = b[13];
-    { int p = 6 + piv[6]; double t = y[6]; y[6] = y[p]; y[p] = t; }
-    { int p = 6 + piv[7]; double t = y[7]; y[7] = y[p]; y[p] = t; }
+    { double g0 = y[6 + perm[6]], g1 = y[6 + perm[7]]; y[6] = g0; y[7] = g1; }
     y[7] -= A[9] * y[6];
     y[7] *= 1.0 / A[11];
     y[6] -= A[10] * y[7];
@@ -1054,12 +1050,7 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
     { double acc = b[9]; acc -= off[9] * y[9]; y[15] = acc; }
     { double acc = b[10]; acc -= off[10] * y[8]; acc -= off[11] * y[11]; y[16] = acc; }
     { double acc = b[11]; acc -= off[12] * y[6]; acc -= off[13] * y[7]; acc -= off[14] * y[10]; y[17] = acc; }
-    { int p = 12 + piv[12]; double t = y[12]; y[12] = y[p]; y[p] = t; }
-    { int p = 12 + piv[13]; double t = y[13]; y[13] = y[p]; y[p] = t; }
-    { int p = 12 + piv[14]; double t = y[14]; y[14] = y[p]; y[p] = t; }
-    { int p = 12 + piv[15]; double t = y[15]; y[15] = y[p]; y[p] = t; }
-    { int p = 12 + piv[16]; double t = y[16]; y[16] = y[p]; y[p] = t; }
-    { int p = 12 + piv[17]; double t = y[17]; y[17] = y[p]; y[p] = t; }
+    { double g0 = y[12 + perm[12]], g1 = y[12 + perm[13]], g2 = y[12 + perm[14]], g3 = y[12 + perm[15]], g4 = y[12 + perm[16]], g5 = y[12 + perm[17]]; y[12] = g0; y[13] = g1; y[14] = g2; y[15] = g3; y[16] = g4; y[17] = g5; }
     y[13] -= A[17] * y[12];
     y[14] -= A[18] * y[12];
     y[15] -= A[19] * y[12];
@@ -1099,9 +1090,11 @@ static void solve_dead_centre_0(const double *restrict A, const double *restrict
 }
 
 /* x = Phi_q^-1 b (kinegen_model.solve; x and b may alias) */
-static void solve_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y) {
-    solve_dead_centre_0(A, off, piv, b, y);
-    for (int j = 0; j < 18; ++j) x[col_order_dead_centre[j]] = y[j];
+static void solve_dead_centre(const double *A, const double *off, const int *perm, const double *b, double *x, double *y) {
+    solve_dead_centre_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[12] = y[5];
+    x[16] = y[6]; x[17] = y[7]; x[14] = y[8]; x[13] = y[9]; x[15] = y[10]; x[8] = y[11];
+    x[5] = y[12]; x[7] = y[13]; x[6] = y[14]; x[9] = y[15]; x[10] = y[16]; x[11] = y[17];
 }
 
 /* the first permuted row of each function above */
@@ -1109,15 +1102,17 @@ static const int solve_rows_dead_centre[] = {0};
 
 /* x = Phi_q^-1 b for a b that is zero in the rows before function `first`'s (kinegen_model.solve_from):
  * those rows of y are zero, the functions before it are skipped */
-static void solve_from_dead_centre(const double *A, const double *off, const int *piv, const double *b, double *x, double *y, int first) {
+static void solve_from_dead_centre(const double *A, const double *off, const int *perm, const double *b, double *x, double *y, int first) {
     for (int j = 0; j < solve_rows_dead_centre[first]; ++j) y[j] = 0.0;
-    if (first <= 0) solve_dead_centre_0(A, off, piv, b, y);
-    for (int j = 0; j < 18; ++j) x[col_order_dead_centre[j]] = y[j];
+    if (first <= 0) solve_dead_centre_0(A, off, perm, b, y);
+    x[0] = y[0]; x[1] = y[1]; x[2] = y[2]; x[3] = y[3]; x[4] = y[4]; x[12] = y[5];
+    x[16] = y[6]; x[17] = y[7]; x[14] = y[8]; x[13] = y[9]; x[15] = y[10]; x[8] = y[11];
+    x[5] = y[12]; x[7] = y[13]; x[6] = y[14]; x[9] = y[15]; x[10] = y[16]; x[11] = y[17];
 }
 
 /* w = Phi_q^-T w in the plan's order from the factors: the transposed block solve written out, from the
  * last block (every case with this plan calls them through solve_transposed_dead_centre) */
-static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict piv, double *restrict w) {
+static void solve_transposed_dead_centre_0(const double *restrict A, const double *restrict off, const int *restrict perm, double *restrict w) {
     { double acc = w[12]; w[12] = acc * (1.0 / A[16]); }
     { double acc = w[13]; acc -= A[22] * w[12]; w[13] = acc * (1.0 / A[23]); }
     { double acc = w[14]; acc -= A[28] * w[12]; acc -= A[29] * w[13]; w[14] = acc * (1.0 / A[30]); }
@@ -1129,12 +1124,7 @@ static void solve_transposed_dead_centre_0(const double *restrict A, const doubl
     { double acc = w[14]; acc -= A[31] * w[15]; acc -= A[32] * w[16]; acc -= A[33] * w[17]; w[14] = acc; }
     { double acc = w[13]; acc -= A[24] * w[14]; acc -= A[25] * w[15]; acc -= A[26] * w[16]; acc -= A[27] * w[17]; w[13] = acc; }
     { double acc = w[12]; acc -= A[17] * w[13]; acc -= A[18] * w[14]; acc -= A[19] * w[15]; acc -= A[20] * w[16]; acc -= A[21] * w[17]; w[12] = acc; }
-    { int p = 12 + piv[17]; double t = w[17]; w[17] = w[p]; w[p] = t; }
-    { int p = 12 + piv[16]; double t = w[16]; w[16] = w[p]; w[p] = t; }
-    { int p = 12 + piv[15]; double t = w[15]; w[15] = w[p]; w[p] = t; }
-    { int p = 12 + piv[14]; double t = w[14]; w[14] = w[p]; w[p] = t; }
-    { int p = 12 + piv[13]; double t = w[13]; w[13] = w[p]; w[p] = t; }
-    { int p = 12 + piv[12]; double t = w[12]; w[12] = w[p]; w[p] = t; }
+    { double g0 = w[12], g1 = w[13], g2 = w[14], g3 = w[15], g4 = w[16], g5 = w[17]; w[12 + perm[12]] = g0; w[12 + perm[13]] = g1; w[12 + perm[14]] = g2; w[12 + perm[15]] = g3; w[12 + perm[16]] = g4; w[12 + perm[17]] = g5; }
     w[0] -= off[4] * w[12];
     w[4] -= off[5] * w[12];
     w[1] -= off[6] * w[13];
@@ -1157,23 +1147,21 @@ static void solve_transposed_dead_centre_0(const double *restrict A, const doubl
     { double acc = w[6]; w[6] = acc * (1.0 / A[8]); }
     { double acc = w[7]; acc -= A[10] * w[6]; w[7] = acc * (1.0 / A[11]); }
     { double acc = w[6]; acc -= A[9] * w[7]; w[6] = acc; }
-    { int p = 6 + piv[7]; double t = w[7]; w[7] = w[p]; w[p] = t; }
-    { int p = 6 + piv[6]; double t = w[6]; w[6] = w[p]; w[p] = t; }
+    { double g0 = w[6], g1 = w[7]; w[6 + perm[6]] = g0; w[6 + perm[7]] = g1; }
     { double acc = w[5]; w[5] = acc * (1.0 / A[7]); }
     { double acc = w[3]; w[3] = acc * (1.0 / A[3]); }
     { double acc = w[4]; acc -= A[5] * w[3]; w[4] = acc * (1.0 / A[6]); }
     { double acc = w[3]; acc -= A[4] * w[4]; w[3] = acc; }
-    { int p = 3 + piv[4]; double t = w[4]; w[4] = w[p]; w[p] = t; }
-    { int p = 3 + piv[3]; double t = w[3]; w[3] = w[p]; w[p] = t; }
+    { double g0 = w[3], g1 = w[4]; w[3 + perm[3]] = g0; w[3 + perm[4]] = g1; }
     { double acc = w[2]; w[2] = acc * (1.0 / A[2]); }
     { double acc = w[1]; w[1] = acc * (1.0 / A[1]); }
     { double acc = w[0]; w[0] = acc * (1.0 / A[0]); }
 }
 
 /* x = Phi_q^-T c (kinegen_model.solve_transposed; x and c may alias; w: n_v values of work) */
-static void solve_transposed_dead_centre(const double *A, const double *off, const int *piv, const double *c, double *x, double *w) {
+static void solve_transposed_dead_centre(const double *A, const double *off, const int *perm, const double *c, double *x, double *w) {
     for (int j = 0; j < 18; ++j) w[j] = c[col_order_dead_centre[j]];
-    solve_transposed_dead_centre_0(A, off, piv, w);
+    solve_transposed_dead_centre_0(A, off, perm, w);
     for (int i = 0; i < 18; ++i) x[row_order_dead_centre[i]] = w[i];
 }
 /* per input, the function of the written solve its column of Phi_q^-1 Phi_u starts in */

@@ -440,8 +440,8 @@ static int run(const kinegen_model *m, int k) {
         double w[FOUR_BAR_QUATERNION_N_V], r[FOUR_BAR_QUATERNION_N_V] = {0}, rt[FOUR_BAR_QUATERNION_N_V] = {0};
         double big = 0.0, worst = 0.0, worst_t = 0.0;
         for (i = 0; i < m->n_v; ++i) c[i] = (i % 2 ? -1.0 : 1.0) * (1.0 + 0.01 * i);
-        m->solve(s.store, s.off, s.pivots, c, x, w);
-        m->solve_transposed(s.store, s.off, s.pivots, c, xt, w);
+        m->solve(s.store, s.off, s.perms, c, x, w);
+        m->solve_transposed(s.store, s.off, s.perms, c, xt, w);
         for (i = 0; i < m->n_jac; ++i) {
             r[m->jac_rows[i]] += s.jac[i] * x[m->jac_cols[i]];
             rt[m->jac_cols[i]] += s.jac[i] * xt[m->jac_rows[i]];
@@ -522,8 +522,8 @@ static int run(const kinegen_model *m, int k) {
         for (int c = 0; c < n; ++c) {
             memset(b, 0, sizeof(b));
             b[m->n_v - n + c] = 1.0 + 0.1 * c;
-            m->solve(s.store, s.off, s.pivots, b, x, work);
-            m->solve_from(s.store, s.off, s.pivots, b, y, work, m->input_pieces[c]);
+            m->solve(s.store, s.off, s.perms, b, x, work);
+            m->solve_from(s.store, s.off, s.perms, b, y, work, m->input_pieces[c]);
             for (int j = 0; j < m->n_v; ++j) differ += x[j] != y[j]; /* (== : a zero's sign aside) */
             first = m->input_pieces[c] > first ? m->input_pieces[c] : first;
         }

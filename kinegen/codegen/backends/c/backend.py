@@ -64,6 +64,13 @@ def _int_array(values) -> str:
     return "{" + ", ".join(str(int(v)) for v in values) + "}" if values else "{0}"
 
 
+def _unpermuted(col_order) -> list[str]:
+    """x[col_order[j]] = y[j] for every position j, written out six to a line: a written solve's last
+    statements (its loop over col_order read an index a value: 4 % of the excavator's step)."""
+    stores = [f"x[{int(c)}] = y[{j}];" for j, c in enumerate(col_order)]
+    return [" ".join(stores[k : k + 6]) for k in range(0, len(stores), 6)]
+
+
 def _string_array(values) -> str:
     values = list(values)
     return "{" + ", ".join(c_string(v) for v in values) + "}" if values else "{0}"
@@ -147,10 +154,10 @@ STRAIGHT_SOLVE_LIMIT = 50_000
 def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]], list[int]] | None:
     """The block solves y = M^-1 b and w <- M^-T w (in the plan's permuted order) for a plan's factors,
     written out: the bodies of C functions of (``A`` the blocks' LU factors, ``off`` the values below
-    them, ``piv`` the blocks' pivots, then ``b`` and ``y``, or ``w``), called in order. kinegen_solver.c's
+    them, ``perm`` the blocks' row permutations, then ``b`` and ``y``, or ``w``), called in order. kinegen_solver.c's
     ``solve`` and ``solve_transposed`` loops with every index a constant -- per block its rows'
-    right-hand sides less the entries below the blocks, the block's row interchanges, L's and U's
-    substitutions (transposed: the blocks from the last, U^T, L^T, the interchanges, then the entries
+    right-hand sides less the entries below the blocks, the block's row permutation (:func:`_gather`), L's and U's
+    substitutions (transposed: the blocks from the last, U^T, L^T, the permutation's transpose, then the entries
     below the block) --, cut at block boundaries into functions of at most about
     :data:`config.PART_STATEMENTS` statements (the generated kernels' length, which keeps the compile
     time linear); then the first (permuted) row of each forward function, where a right-hand side
@@ -171,7 +178,7 @@ def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]
             else:
                 lines.append(f"y[{row}] = b[{arrays.row_order[row]}];")
         if n > 1:
-            lines += [f"{{ int p = {first} + piv[{k}]; double t = y[{k}]; y[{k}] = y[p]; y[p] = t; }}" for k in range(first, end)]
+            lines.append(_gather("y", first, end))
             for k in range(n):
                 lines += [f"y[{first + i}] -= A[{base + i + k * n}] * y[{first + k}];" for i in range(k + 1, n)]
         for k in range(n - 1, -1, -1):
@@ -187,12 +194,26 @@ def straight_solve(arrays: _PlanArrays) -> tuple[list[list[str]], list[list[str]
                 lines.append(f"{{ double acc = w[{first + k}];" + "".join(f" acc -= A[{base + i + k * n}] * w[{first + i}];" for i in range(k + 1, n))
                              + f" w[{first + k}] = acc; }}")  # fmt: skip
         if n > 1:
-            lines += [f"{{ int p = {first} + piv[{k}]; double t = w[{k}]; w[{k}] = w[p]; w[p] = t; }}" for k in range(end - 1, first - 1, -1)]
+            lines.append(_scatter("w", first, end))
         for row in range(first, end):
             lines += [f"w[{arrays.off_col[e]}] -= off[{e}] * w[{row}];" for e in range(arrays.off_start[row], arrays.off_start[row + 1])]
         transposed.append(lines)
     pieces, first_blocks = _pieces(forward)
     return pieces, _pieces(transposed[::-1])[0], [starts[block] for block in first_blocks]
+
+
+def _gather(vector: str, first: int, end: int) -> str:
+    """One block's row permutation applied to ``vector`` (positions first .. end-1): position k takes
+    position first + perm[k] (kinegen_solver.perms). Every value is read before any is written, so no
+    read waits on the store before it (the interchanges one by one did: 6 % of the excavator's step)."""
+    loads = ", ".join(f"g{k - first} = {vector}[{first} + perm[{k}]]" for k in range(first, end))
+    return f"{{ double {loads};" + "".join(f" {vector}[{k}] = g{k - first};" for k in range(first, end)) + " }"
+
+
+def _scatter(vector: str, first: int, end: int) -> str:
+    """The transpose of :func:`_gather`: position first + perm[k] takes position k."""
+    loads = ", ".join(f"g{k - first} = {vector}[{k}]" for k in range(first, end))
+    return f"{{ double {loads};" + "".join(f" {vector}[{first} + perm[{k}]] = g{k - first};" for k in range(first, end)) + " }"
 
 
 def _pieces(blocks: list[list[str]]) -> tuple[list[list[str]], list[int]]:
@@ -208,7 +229,7 @@ def _pieces(blocks: list[list[str]]) -> tuple[list[list[str]], list[int]]:
         pieces[-1] += lines
     for piece in pieces:
         text = "\n".join(piece)
-        piece[:0] = [f"(void){name};" for name in ("A", "off", "piv") if f"{name}[" not in text]
+        piece[:0] = [f"(void){name};" for name in ("A", "off", "perm") if f"{name}[" not in text]
     return pieces, first_blocks
 
 
@@ -561,5 +582,5 @@ def _largest(names: list[str], prefix: str) -> str:
     return f"KINEGEN_MAX({_largest(names[:half], prefix)}, {_largest(names[half:], prefix)})"
 
 
-FILTERS = {"c_string": c_string, "int_array": _int_array, "string_array": _string_array, "double": _double, "double_array": _double_array,
+FILTERS = {"c_string": c_string, "int_array": _int_array, "unpermuted": _unpermuted, "string_array": _string_array, "double": _double, "double_array": _double_array,
            "largest": _largest}  # fmt: skip

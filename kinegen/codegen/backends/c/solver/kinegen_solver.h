@@ -263,16 +263,16 @@ typedef struct kinegen_model {
     const int *diag_value, *diag_slot; /*   value diag_value[k] goes to store[diag_slot[k]] */
     int n_off;                     /* values below the block diagonal, by permuted row (CSR): */
     const int *off_start, *off_col, *off_value;
-    /* x = Phi_q^-1 b from the factors (store, off, pivots as kinegen_init carves them; y: n_v values of
+    /* x = Phi_q^-1 b from the factors (store, off, perms as kinegen_init carves them; y: n_v values of
      * work; x and b may alias): the plan's block solve written out for this case, straight-line (no
      * loop over the blocks or their entries); NULL: the solver's loop over the plan (same operations) */
-    void (*solve)(const double *store, const double *off, const int *pivots, const double *b, double *x, double *y);
+    void (*solve)(const double *store, const double *off, const int *perms, const double *b, double *x, double *y);
     /* x = Phi_q^-T c likewise (w: n_v values of work; x and c may alias), NULL with solve */
-    void (*solve_transposed)(const double *store, const double *off, const int *pivots, const double *c, double *x, double *w);
+    void (*solve_transposed)(const double *store, const double *off, const int *perms, const double *c, double *x, double *w);
     /* x = Phi_q^-1 b like solve, for a b that is zero in the permuted rows before those of the written solve's
      * function `first` (their part skipped), and per input k the function where its column of Phi_q^-1 Phi_u
      * starts (input_pieces[k]: its driver's row is in it); both NULL with solve, or in C generated before them */
-    void (*solve_from)(const double *store, const double *off, const int *pivots, const double *b, double *x, double *y, int first);
+    void (*solve_from)(const double *store, const double *off, const int *perms, const double *b, double *x, double *y, int first);
     const int *input_pieces;
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
     int n_kernels;                 /* every kernel of the case, as data (with design parameters: */
@@ -305,7 +305,10 @@ typedef struct kinegen_solver {
     int factor_sign;  /* sign of det(Phi_q) of the factors in store */
     /* workspace */
     double *trial, *phi, *jac, *store, *off, *rhs, *step, *y, *x;
-    int *pivots; /* and the condition estimate's sign vector after them */
+    int *pivots; /* the blocks' LU interchanges (LAPACK's: row k swapped with row pivots[k] of its block, in turn),
+                    and the condition estimate's sign vector after them */
+    int *perms;  /* the same interchanges composed, the written-out solves' (kinegen_model.solve): position k of a
+                    block starting at position f takes row f + perms[k] (n_v ints) */
     const double *design; /* the design parameters the kernels take, or NULL (a model without them) */
     /* the certificate (see kinegen_options) */
     double *u, *ud;         /* the inputs and their rates at t */
@@ -345,7 +348,7 @@ typedef struct kinegen_solver {
  * its blocks' factors and n_off below them, n_blocks diagonal blocks, n_inputs drivers */
 #define KINEGEN_WORK_DOUBLES(n_q, n_v, n_jac, n_store, n_off, n_inputs) \
     (2 * (n_q) + 22 * (n_v) + 2 * (n_jac) + 2 * (n_store) + 2 * (n_off) + 14 * (n_inputs))
-#define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (3 * (n_v) + 2 * (n_blocks) + (n_inputs))
+#define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (4 * (n_v) + 2 * (n_blocks) + (n_inputs))
 /* kinegen_sensitivities: n_p design parameters, n_values the largest sensitivity kernel's output */
 #define KINEGEN_SENSITIVITY_DOUBLES(n_v, n_p, n_values) (2 * (n_v) * (n_p) + (n_values))
 /* kinegen_forces, any case: n_inertia and n_load_values the inertia and loads kernels' outputs, n_inputs
