@@ -394,7 +394,7 @@ static int factor(kinegen_solver *s, const double *jac) {
         s->have_factors = 0;
         return 1;
     }
-    compose_interchanges(s->model, s->pivots, s->perms);
+    if (s->model->solve != NULL) compose_interchanges(s->model, s->pivots, s->perms); /* (only they read perms) */
     s->factor_sign = odd ? -1 : 1;
     s->have_factors = 1;
     return !(low > s->options.singular_tolerance * fmax(high, 1e-300));
@@ -1000,10 +1000,6 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
     return max_abs(columns, nv) + 4.0 / 27.0 * (max_abs(columns + nv, nv) + max_abs(columns + 2 * nv, nv));
 }
 
-/* The step's certificate (see kinegen_options in kinegen_solver.h) for the converged s->trial at
- * the new inputs u, ud at t, a step of h from the state (q, u, ud at s->t): the factors in store are
- * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there; last_try: a refusal is final (no halving follows),
- * so it names the input (branch_input). KINEGEN_OK or KINEGEN_BRANCH. */
 /* w = (J0 - J1) d for Phi_q's values j0, j1 at the case's pattern (jac_rows, jac_cols) and d (n_v values):
  * each row's terms added in the pattern's order, a run of one row's entries in a register. Row by row
  * through memory, every term waited on the store of the one before it (the pattern lists a row's
@@ -1020,6 +1016,10 @@ static void changes_times(const kinegen_model *m, const double *j0, const double
     }
 }
 
+/* The step's certificate (see kinegen_options in kinegen_solver.h) for the converged s->trial at
+ * the new inputs u, ud at t, a step of h from the state (q, u, ud at s->t): the factors in store are
+ * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there; last_try: a refusal is final (no halving follows),
+ * so it names the input (branch_input). KINEGEN_OK or KINEGEN_BRANCH. */
 static int certify(kinegen_solver *s, double t, double h, const double *u, const double *ud, int last_try) {
     const kinegen_model *m = s->model;
     int nv = m->n_v;

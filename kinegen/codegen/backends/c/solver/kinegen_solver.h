@@ -308,7 +308,7 @@ typedef struct kinegen_solver {
     int *pivots; /* the blocks' LU interchanges (LAPACK's: row k swapped with row pivots[k] of its block, in turn),
                     and the condition estimate's sign vector after them */
     int *perms;  /* the same interchanges composed, the written-out solves' (kinegen_model.solve): position k of a
-                    block starting at position f takes row f + perms[k] (n_v ints) */
+                    block starting at position f takes row f + perms[k] (n_v ints; filled where the case has them) */
     const double *design; /* the design parameters the kernels take, or NULL (a model without them) */
     /* the certificate (see kinegen_options) */
     double *u, *ud;         /* the inputs and their rates at t */
