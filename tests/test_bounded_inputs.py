@@ -212,26 +212,29 @@ def test_a_csv_that_cannot_be_written_whole_keeps_the_previous_file(tmp_path):
 
 
 def test_a_write_killed_midway_leaves_no_temporary_file_after_the_next_run(tmp_path):
-    """SIGKILL while a large CSV is written leaves its temporary file; the next write into the
-    same folder removes it (its writer no longer runs) and the CSV is whole."""
+    """SIGKILL while a CSV is written leaves its temporary file; the next write into the same folder
+    removes it (its writer no longer runs) and the CSV is whole. The kill is the process's own, a
+    real SIGKILL at a known point of the write: its rows written and flushed, the file not yet
+    moved into place (a kill from outside, timed by polling for the file, missed the write on a
+    loaded machine and took three whole solves)."""
     out = tmp_path / "long.csv"
-    command = [sys.executable, "-m", "kinegen.cli", "solve", FOUR_BAR, "--steps", "60000", "--out", str(out),
-               "--generated-dir", str(tmp_path), "--force"]  # fmt: skip  # the write, not this machine's memory
-    for _attempt in range(3):  # on a loaded machine the write can end between seeing its file and the kill: again
-        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        deadline = time.monotonic() + 240
-        while not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")] and time.monotonic() < deadline:
-            if process.poll() is not None:  # it ended by itself: it must have written the whole file
-                assert process.returncode == 0 and out.exists(), f"the solve failed: exit {process.returncode}"
-                break
-            time.sleep(0.01)
-        process.kill()
-        process.wait()
-        if [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]:
-            break
-        out.unlink(missing_ok=True)
-    assert [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")], "the write finished before it could be killed, 3 times"
-    assert not out.exists()
+    killing = (
+        "import os, signal, sys\n"
+        "from kinegen.runtime import export\n"
+        "rows = export._csv_rows\n"
+        "def rows_then_killed(handle, names, values):\n"
+        "    rows(handle, names, values)\n"
+        "    handle.flush()\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+        "export._csv_rows = rows_then_killed\n"
+        "from kinegen.cli import main\n"
+        "main(sys.argv[1:])\n"
+    )
+    command = [sys.executable, "-c", killing, "solve", FOUR_BAR, "--steps", "2000", "--out", str(out), "--generated-dir", str(tmp_path)]
+    killed = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert killed.returncode == -signal.SIGKILL, killed.stderr
+    left = [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+    assert len(left) == 1 and left[0].stat().st_size > 100_000 and not out.exists()  # 2,001 rows written, never moved
     again = kinegen("solve", FOUR_BAR, "--steps", "11", "--out", str(out), "--generated-dir", str(tmp_path))
     assert again.returncode == 0, again.stderr
     assert [p.name for p in tmp_path.iterdir() if ".tmp" in p.name] == []

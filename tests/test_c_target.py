@@ -228,7 +228,19 @@ def test_on_a_coarse_grid_the_certificates_coarse_bounds_accept_and_refuse_what_
     assert np.abs(reference.q - compiled.q).max() < 1e-9
 
 
-def test_the_quarter_turn_cap_leaves_the_translations_out_alike_in_c_and_python(tmp_path, monkeypatch):
+@pytest.fixture(scope="module")
+def chain14_over_10_s(tmp_path_factory) -> Path:
+    """chain-14 in Euler parameters over 10 s on 101 points: its Python module (its C compiled by the
+    first test that solves it compiled, once for both that use it)."""
+    from kinegen.bench import chain as bench_chain
+
+    folder = tmp_path_factory.mktemp("chain14")
+    model = folder / "chain14.yaml"
+    model.write_text(bench_chain.chain_yaml(14, t1=10.0, steps=101))
+    return _python_module(folder, model, "euler-parameters")
+
+
+def test_the_quarter_turn_cap_leaves_the_translations_out_alike_in_c_and_python(chain14_over_10_s, monkeypatch):
     """A certified step may turn no rotation coordinate by a quarter turn or more (kinegen_solver.h's
     KINEGEN_MAX_MOTION, the Python solver's MAX_MOTION); a body's translations (x, y, z; a dual quaternion's
     vx, vy, vz) repeat nothing and are not capped. chain-14 in Euler parameters on 41 points over 10 s: its
@@ -236,18 +248,15 @@ def test_the_quarter_turn_cap_leaves_the_translations_out_alike_in_c_and_python(
     translations off the layout's velocity names) and Python (NumericSystem.turning) take the same steps
     to the same poses, and fewer Newton iterations than Python with every coordinate capped, which
     halves the steps whose links moved more than pi/2 m (measured: 399 against 439)."""
-    from kinegen.bench import chain as bench_chain
     from kinegen.runtime.solver import MAX_MOTION
     from kinegen.runtime.system import NumericSystem
 
-    model = tmp_path / "chain14.yaml"
-    model.write_text(bench_chain.chain_yaml(14, t1=10.0, steps=41))
-    module = load_module(_python_module(tmp_path, model, "euler-parameters"))
+    module, times = load_module(chain14_over_10_s), np.linspace(0.0, 10.0, 41)
     python = from_module(module, "drive", compiled=False)
     assert [python.velocity_names[i].split(".")[1] for i in python.turning[:4]] == ["e0", "e1", "e2", "e3"]
     assert len(python.turning) == 14 * 4
-    compiled = Solver(from_module(module, "drive", compiled=True)).solve()
-    reference = Solver(python).solve()
+    compiled = Solver(from_module(module, "drive", compiled=True)).solve(times)
+    reference = Solver(python).solve(times)
     assert compiled.converged.all() and reference.converged.all() and len(reference.times) == 41
     translations = np.setdiff1d(np.arange(python.n_velocity), python.turning)
     moved = np.abs(np.diff(reference.q, axis=0))  # (stored = velocity coordinates in Euler parameters)
@@ -255,23 +264,19 @@ def test_the_quarter_turn_cap_leaves_the_translations_out_alike_in_c_and_python(
     assert np.array_equal(compiled.iterations, reference.iterations)
     assert np.abs(reference.q - compiled.q).max() < 1e-9
     monkeypatch.setattr(NumericSystem, "turning", property(lambda system: np.arange(system.n_velocity)))
-    capped = Solver(from_module(module, "drive", compiled=False)).solve()
+    capped = Solver(from_module(module, "drive", compiled=False)).solve(times)
     assert capped.converged.all() and capped.iterations.sum() > reference.iterations.sum()
     assert np.abs(capped.q - reference.q).max() < 1e-8
 
 
-def test_with_many_inputs_the_exact_columns_stop_once_the_rest_is_bounded_and_decide_as_before(tmp_path, monkeypatch):
+def test_with_many_inputs_the_exact_columns_stop_once_the_rest_is_bounded_and_decide_as_before(chain14_over_10_s, monkeypatch):
     """chain-14 (14 inputs) over 10 s on 101 points (h = 0.1 s: steps halved up to 120 times): where
     the coarse bounds decide nothing, the C certificate solves W's exact columns four at a time in the
     inputs' order and after each group tries |W D| + the exact spread so far + the coarse bound of the
     rest's (measured: 8 certificates settled after 4 columns, 1 after 8, 2 after 12, 1 needed all 14).
     The reference is Python's certificate with the coarse bounds switched off, every column exact:
     C halves the same steps into the same pieces, and the poses agree."""
-    from kinegen.bench import chain as bench_chain
-
-    model = tmp_path / "chain14.yaml"
-    model.write_text(bench_chain.chain_yaml(14, t1=10.0, steps=101))
-    module = load_module(_python_module(tmp_path, model, "euler-parameters"))
+    module = load_module(chain14_over_10_s)
     compiled = Solver(from_module(module, "drive", compiled=True)).solve()
     monkeypatch.setattr(Solver, "_coarse_effect", lambda *args: None)
     reference = Solver(from_module(module, "drive", compiled=False)).solve()
@@ -964,16 +969,24 @@ def _compare_forces(program: Path, system) -> None:
 def test_standalone_chain_and_boom_match_python(tmp_path):
     model = tmp_path / "chain14.yaml"
     model.write_text(chain_yaml(14))
+    solver = None  # the solver's C is the same in both directories: compiled once, strictly, at -O2
     for path, param, case in ((model, "euler-parameters", "drive"), (MODELS / "boom.yaml", "quaternion", "swing")):
         folder = _standalone(tmp_path / path.stem, path, param)
         stem = next(p.stem for p in folder.glob("*.h") if p.name not in config.RUNTIME)
-        program = _compile(folder, stem, ["-O2"])
+        if solver is None:
+            solver = tmp_path / "kinegen_solver.o"
+            done = subprocess.run([CC, *STRICT, *STACK, "-O2", "-c", "-o", str(solver), str(folder / "kinegen_solver.c")], capture_output=True, text=True)
+            assert done.returncode == 0, done.stderr
+        program = folder / f"{stem}_test"
+        sources = [str(folder / name) for name in ("example_main.c", f"{stem}.c")]
+        done = subprocess.run([CC, *STRICT, *STACK, "-O2", "-o", str(program), *sources, str(solver), "-lm"], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
         module = load_module(next(folder.parent.glob("*.py"), None) or _python_module(tmp_path / path.stem, path, param))
         _compare(program, from_module(module, case, compiled=False), case)
 
 
 def _python_module(folder: Path, model: Path, param: str) -> Path:
-    result = CliRunner().invoke(main, ["build", str(model), "--param", param, "--out-dir", str(folder / "py")])
+    result = CliRunner().invoke(main, ["build", str(model), "--param", param, "--no-compile", "--out-dir", str(folder / "py")])  # (its Python alone)
     assert result.exit_code == 0, result.output
     return next((folder / "py").glob("*.py"))
 
@@ -1037,12 +1050,12 @@ def test_a_step_is_halved_at_most_as_often_as_both_solvers_allow():
             SolverOptions(max_refinements=wrong)
 
 
-def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path):
+@EXCAVATOR_C
+def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(excavator_objects):
     """Inputs from a CSV on stdin give the same rows as the case's own functions; the toggle
-    case ends with the solver's status as the exit code."""
-    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion", "--no-sensitivities")
-    assert subprocess.run(["make", "-s", "-C", str(folder)], capture_output=True).returncode == 0
-    program = folder / "excavator_quaternion_example"
+    case ends with the solver's status as the exit code. (The directory's Makefile builds the same
+    program in the controller's README test.)"""
+    program = _link(excavator_objects, "excavator_quaternion_stdin", ["example_main.c"], [*STRICT, *STACK, "-O2"])
     own = subprocess.run([str(program), "level_cut"], capture_output=True, text=True, check=True).stdout
     system = from_module(load_module(GENERATED / "excavator_quaternion.py"), "level_cut", compiled=False)
     times = np.linspace(system.t0, system.t1, system.steps)

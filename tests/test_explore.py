@@ -152,6 +152,19 @@ def test_status_says_unreachable_exactly_where_the_boom_cylinder_cannot_retract_
 
 
 # ---- on a real LocalCluster ------------------------------------------------------------------------------
+#: the tests that read the one-worker run run in one test process (make test distributes with --dist
+#: loadgroup), so that its 40 variants (~9 s) are measured once, and the two-worker cluster is started once
+CLUSTER_GROUP = pytest.mark.xdist_group(name="explore_cluster")
+
+
+@pytest.fixture(scope="module")
+def two_workers():
+    """A real LocalCluster of two worker processes and its client, shared by the tests that need two
+    (a worker killed there is restarted by its nanny: the cluster has two again)."""
+    with local_cluster(2, ":0") as cluster, Client(cluster) as client:
+        yield client
+
+
 @pytest.fixture(scope="module")
 def one_worker_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("explore") / "one.parquet"
@@ -161,11 +174,12 @@ def one_worker_run(tmp_path_factory) -> Path:
     return out
 
 
-def test_two_workers_end_to_end_give_the_one_worker_parquet(one_worker_run: Path, tmp_path: Path) -> None:
-    out = tmp_path / "two.parquet"
-    with local_cluster(2, ":0") as cluster, Client(cluster) as client:
-        report = explore(calibration(), out, client=client, progress=False)
-        workers = {r["name"] for r in client.scheduler_info()["workers"].values()}
+@CLUSTER_GROUP
+def test_two_workers_end_to_end_give_the_one_worker_parquet(one_worker_run: Path, two_workers, tmp_path: Path) -> None:
+    out, client = tmp_path / "two.parquet", two_workers
+    client.wait_for_workers(2, timeout=120)  # (after the kill test, until the nanny's new worker is in)
+    report = explore(calibration(), out, client=client, progress=False)
+    workers = {r["name"] for r in client.scheduler_info()["workers"].values()}
     assert report.workers == 2 and len(workers) == 2
     assert report.computed == 5 and report.variants == 40
     one, two = Store(one_worker_run).read(), Store(out).read()
@@ -184,22 +198,24 @@ def test_two_workers_end_to_end_give_the_one_worker_parquet(one_worker_run: Path
     assert b"kinegen" in pq.read_schema(out / "part-000000.parquet").metadata
 
 
-def test_a_worker_killed_mid_run_is_survived(one_worker_run: Path, tmp_path: Path) -> None:
-    out = tmp_path / "killed.parquet"
+@CLUSTER_GROUP
+def test_a_worker_killed_mid_run_is_survived(one_worker_run: Path, two_workers, tmp_path: Path) -> None:
+    out, client = tmp_path / "killed.parquet", two_workers
     killed: list[int] = []
-    with local_cluster(2, ":0") as cluster, Client(cluster) as client:
-        pids = client.run(os.getpid)
+    client.wait_for_workers(2, timeout=120)
+    pids = client.run(os.getpid)
 
-        def kill_one(_result) -> None:
-            if killed:
-                return
-            busy = [address for address, keys in client.processing().items() if keys]
-            victim = pids[busy[0]] if busy else next(iter(pids.values()))
-            os.kill(victim, signal.SIGKILL)  # a real kill of a worker process in the middle of a task
-            killed.append(victim)
+    def kill_one(_result) -> None:
+        if killed:
+            return
+        busy = [address for address, keys in client.processing().items() if keys]
+        victim = pids[busy[0]] if busy else next(iter(pids.values()))
+        os.kill(victim, signal.SIGKILL)  # a real kill of a worker process in the middle of a task
+        killed.append(victim)
 
-        report = explore(calibration(), out, client=client, progress=False, on_partition=kill_one)
-        after = set(client.run(os.getpid).values())
+    report = explore(calibration(), out, client=client, progress=False, on_partition=kill_one)
+    client.wait_for_workers(2, timeout=120)
+    after = set(client.run(os.getpid).values())
     assert killed and killed[0] not in after  # the nanny started a new worker process
     assert report.computed == 5
     table = Store(out).read()
@@ -214,6 +230,7 @@ def _interruptible() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+@CLUSTER_GROUP
 def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(one_worker_run: Path, tmp_path: Path) -> None:
     out = tmp_path / "resumed.parquet"
     command = [sys.executable, "-m", "kinegen.cli", "explore", str(MODEL), "--study", "calibration", "--samples", "40",
@@ -257,6 +274,7 @@ def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(on
     assert plot.stat().st_size > 10_000 and "sensitivity ranking" in resumed.stdout
 
 
+@CLUSTER_GROUP
 def test_a_folder_of_another_run_is_not_resumed_or_overwritten(one_worker_run: Path) -> None:
     with pytest.raises(ExplorationError, match="seed: 0 there, 1 now"):
         explore(calibration(seed=1), one_worker_run, resume=True, progress=False)
@@ -267,6 +285,7 @@ def test_a_folder_of_another_run_is_not_resumed_or_overwritten(one_worker_run: P
     assert report.computed == 0 and report.already == 5 and report.workers == 0
 
 
+@CLUSTER_GROUP
 def test_the_readmes_one_liner_reads_the_parquet_folder_with_what_kinegen_explore_installs(one_worker_run: Path) -> None:
     """docs/studies.md's pyarrow line, as printed (its folder swapped for this run's), reads every variant."""
     import re

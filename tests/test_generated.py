@@ -52,11 +52,12 @@ def test_committed_module_is_fresh(path):
 
 def test_generation_does_not_depend_on_hash_seed():
     """The excavator (every kind of kernel: sensitivities, forces, supply, piecewise inputs), Python
-    module and C, built under four ``PYTHONHASHSEED`` values at once: each gives the committed
+    module and C, built under three ``PYTHONHASHSEED`` values at once (and a fourth, random one in
+    the committed-module check's test process): each gives the committed
     files' bytes (SymPy derives and prints, SymEngine differentiates and eliminates; neither may
     let Python's string hashing order a term). Each build forks: its sensitivity kernels are derived and
     printed in a forked process, beside the description and the printing of the rest (this test's own
-    process, with threads, does not fork: the committed-module checks build there). The fourth build's
+    process, with threads, does not fork: the committed-module checks build there). The third build's
     forked process prints only the C, so this one derives the sensitivity entries again for the Python."""
     code = (
         "import hashlib, sys; from kinegen.codegen import backends, writer; from kinegen.model import load; "
@@ -65,7 +66,7 @@ def test_generation_does_not_depend_on_hash_seed():
         "made = writer.generate(load(sys.argv[1]), rotations.get('quaternion')); "
         "print(*sorted(f'{n} {hashlib.sha256(t.encode()).hexdigest()}' for f in made.values() for n, t in f.items()), sep='\\n')"
     )
-    seeds = ("0", "1", "4242", "7")
+    seeds = ("0", "4242", "7")
     runs = [
         subprocess.Popen([sys.executable, "-c", code, str(MODELS / "excavator.yaml"), "c-only" if seed == "7" else "all"],
                          env=dict(os.environ, PYTHONHASHSEED=seed), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
