@@ -18,6 +18,9 @@ from kinegen.runtime import from_module, load_module, solve
 from tests.conftest import generated_system, model
 from tests.test_mistakes import CRANE
 
+#: the file's tests in one test process (make test distributes with --dist loadgroup): the fastest digging cycle and the module, computed once
+pytestmark = pytest.mark.xdist_group(name="cycle")
+
 #: the crane without masses, one pump: only the pump's flow limits how fast it raises its boom
 LIGHT_CRANE = "\n".join(line for line in CRANE.replace("BORE", "0.1").replace("ROD", "0.06").splitlines()
                         if not line.strip().startswith(("mass:", "center_of_mass:", "inertia:"))) + """

@@ -14,6 +14,9 @@ from kinegen.forces.maps import force_map
 from tests import excavator_reference as ref
 from tests.conftest import generated_system, model
 
+#: the file's tests in one test process (make test distributes with --dist loadgroup): the force maps (mapped(), reached()), computed once
+pytestmark = pytest.mark.xdist_group(name="force_maps")
+
 H = 1e-6
 #: bore, rod, cylinders of the boom, arm and bucket cylinders; every one at the relief setting
 CYLINDERS = {"boom_cylinder_left": (0.120, 0.085, 2), "arm_cylinder": (0.135, 0.095, 1), "bucket_cylinder": (0.115, 0.080, 1)}

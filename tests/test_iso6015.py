@@ -16,6 +16,9 @@ from kinegen.forces.iso6015 import tool_forces
 from tests import excavator_reference as ref
 from tests.conftest import generated_system, model
 
+#: the file's tests in one test process (make test distributes with --dist loadgroup): the tool forces (found()), computed once
+pytestmark = pytest.mark.xdist_group(name="iso6015")
+
 BOOM0, ARM0 = 2.507892, 1.943212  # the digging case's start (the reference pose)
 RELIEF = 34.3e6
 H = 1e-6

@@ -17,6 +17,9 @@ from kinegen.forces.lift import HYDRAULIC_SHARE, TIPPING_SHARE, G, lift_chart
 from tests import excavator_reference as ref
 from tests.conftest import generated_system, model, nominal_inertia
 
+#: the file's tests in one test process (make test distributes with --dist loadgroup): the lift chart (chart()), computed once
+pytestmark = pytest.mark.xdist_group(name="lift")
+
 BUCKET0 = 1.857898  # the digging case's start
 H = 1e-6
 #: (bore, rod, cylinders, setting) of the lifting boom cylinders (relief) and the holding arm cylinder

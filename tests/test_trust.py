@@ -33,6 +33,9 @@ from kinegen.runtime import native as native_module
 from kinegen.runtime.solver import SamplingWarning
 from tests.conftest import GENERATED, MODELS, cache_with_solver
 
+#: the file's tests in one test process (make test distributes with --dist loadgroup): the oscillation case's fine reference solve, computed once
+pytestmark = pytest.mark.xdist_group(name="trust")
+
 CC = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler")
 

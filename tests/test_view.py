@@ -18,7 +18,11 @@ from kinegen.cli import main
 from tests.conftest import MODELS
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no chromium on this machine (Debian: apt-get install chromium; .ci/run installs it)")
+#: the file's tests in one test process (make test distributes with --dist loadgroup): the page and its animation, drawn once
+pytestmark = [
+    pytest.mark.skipif(CHROMIUM is None, reason="no chromium on this machine (Debian: apt-get install chromium; .ci/run installs it)"),
+    pytest.mark.xdist_group(name="view"),
+]
 #: headless, software WebGL, no network use of its own (this machine's network is closed)
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync", "--hide-scrollbars",
