@@ -844,10 +844,11 @@ def _standalone(tmp_path: Path, model: Path, param: str, *options: str) -> Path:
     return tmp_path / "c"
 
 
-def _compile(folder: Path, stem: str, flags: list[str], stack: bool = True) -> Path:
-    """The standalone example program, strictly (``stack``: with the stack bounds, which hold at -O1 and above)."""
+def _compile(folder: Path, stem: str, flags: list[str], stack: bool = True, solver: Path | None = None) -> Path:
+    """The standalone example program, strictly (``stack``: with the stack bounds, which hold at -O1 and above);
+    ``solver``: kinegen's C solver as an object compiled before (the same C in every standalone directory)."""
     program = folder / f"{stem}_test"
-    sources = [str(folder / name) for name in ("example_main.c", f"{stem}.c", "kinegen_solver.c")]
+    sources = [str(folder / name) for name in ("example_main.c", f"{stem}.c")] + [str(solver or folder / "kinegen_solver.c")]
     done = subprocess.run([CC, *STRICT, *(STACK if stack else ["-Wvla"]), *flags, "-o", str(program), *sources, "-lm"],
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -977,10 +978,7 @@ def test_standalone_chain_and_boom_match_python(tmp_path):
             solver = tmp_path / "kinegen_solver.o"
             done = subprocess.run([CC, *STRICT, *STACK, "-O2", "-c", "-o", str(solver), str(folder / "kinegen_solver.c")], capture_output=True, text=True)
             assert done.returncode == 0, done.stderr
-        program = folder / f"{stem}_test"
-        sources = [str(folder / name) for name in ("example_main.c", f"{stem}.c")]
-        done = subprocess.run([CC, *STRICT, *STACK, "-O2", "-o", str(program), *sources, str(solver), "-lm"], capture_output=True, text=True)
-        assert done.returncode == 0, done.stderr
+        program = _compile(folder, stem, ["-O2"], solver=solver)
         module = load_module(next(folder.parent.glob("*.py"), None) or _python_module(tmp_path / path.stem, path, param))
         _compare(program, from_module(module, case, compiled=False), case)
 
