@@ -146,6 +146,32 @@ def test_half_the_statements_printed_in_a_forked_process_give_the_bytes_one_proc
     assert named == {name: hashlib.sha256(text.encode()).hexdigest() for name, text in made[True]["c-model"].items()}
 
 
+def test_the_garbage_collector_is_paused_while_a_model_is_generated_and_changes_no_byte(monkeypatch):
+    """writer.generate runs with Python's cyclic garbage collector paused (kinegen.collector):
+    paused while the targets are ready, enabled again after -- left disabled when it was -- and the
+    same bytes as a generation with the collector running throughout."""
+    import contextlib
+    import gc
+
+    from kinegen.codegen import kernels
+
+    states = []
+    assert gc.isenabled()
+    paused = writer.generate(model("four_bar"), rotations.get("quaternion"), ready=lambda target, files: states.append(gc.isenabled()))
+    assert states == [False, False] and gc.isenabled()
+    gc.disable()
+    try:
+        writer.generate(model("slider_crank"), rotations.get("quaternion"))
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+    for module in (writer, kernels):
+        monkeypatch.setattr(module, "collector_paused", contextlib.nullcontext)
+    states.clear()
+    running = writer.generate(model("four_bar"), rotations.get("quaternion"), ready=lambda target, files: states.append(gc.isenabled()))
+    assert states == [True, True] and running == paused
+
+
 def test_the_python_modules_place_for_the_c_digests_is_filled_once_or_refused():
     """Where the Python module is rendered before the model's C (in a forked process), its C_FILES holds a
     token for the digests: filled with their literal as the template prints it, and a text holding the

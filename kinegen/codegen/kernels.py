@@ -35,6 +35,7 @@ from sympy.printing.codeprinter import CodePrinter
 import kinegen
 from kinegen.codegen.intervals import IntervalProgram, interval_program
 from kinegen.codegen.shapes import Definitions, Group, Shapes
+from kinegen.collector import collector_paused
 from kinegen.constraints import GROUND_FRAME
 from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS, row_owner
 from kinegen.model import Model
@@ -790,7 +791,17 @@ def describe(
     entries are derived, eliminated and printed by them in a forked process while this one describes
     the rest, where it may fork (:func:`_derive_sensitivities`): the same description and texts. Then
     ``meanwhile(description)`` is called while that process works, on the description whose
-    sensitivity sections are still None (e.g. to print the other sections: :meth:`Shapes.prepare`)."""
+    sensitivity sections are still None (e.g. to print the other sections: :meth:`Shapes.prepare`).
+    Python's garbage collector is paused meanwhile (:mod:`kinegen.collector`)."""
+    with collector_paused():
+        return _describe(model, parametrization, systems, sensitivities, forces, printers, meanwhile)
+
+
+def _describe(
+    model: Model, parametrization: Parametrization, systems: dict[str, System] | None, sensitivities: bool, forces: bool,
+    printers: tuple[CodePrinter, ...], meanwhile: Callable[[ModuleDescription], None] | None,
+) -> ModuleDescription:  # fmt: skip
+    """:func:`describe`'s work."""
     systems = systems or build_systems(model, parametrization)
     first = next(iter(systems.values()))
     coords = first.coordinates

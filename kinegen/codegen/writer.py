@@ -11,6 +11,7 @@ import kinegen.codegen.kept as kept
 from kinegen.codegen.forked import may_fork
 from kinegen.codegen.kernels import ModuleDescription, describe
 from kinegen.codegen.templates import python_literal
+from kinegen.collector import collector_paused
 from kinegen.errors import ModelError
 from kinegen.files import write_atomic
 from kinegen.integrity import digest, expected, expected_key, locked, remember, remember_expected
@@ -43,7 +44,16 @@ def generate(
     forked process when this process may fork (:func:`kinegen.codegen.forked.may_fork`), and the
     sensitivity kernels derived and printed in another from the start of the description
     (:func:`kinegen.codegen.kernels.describe`'s ``printers``): the same texts, so the same bytes,
-    as one process prints."""
+    as one process prints. Python's garbage collector is paused meanwhile (:mod:`kinegen.collector`)."""
+    with collector_paused():
+        return _generate(model, parametrization, targets, ready, sensitivities)
+
+
+def _generate(
+    model: Model, parametrization: Parametrization, targets: tuple[str, ...], ready: Callable[[str, dict[str, str]], None] | None,
+    sensitivities: bool,
+) -> dict[str, dict[str, str]]:  # fmt: skip
+    """:func:`generate`'s work."""
     # the sensitivity kernels are derived and printed in a forked process by the targets' printers while
     # this one describes the rest and prints it (meanwhile), with one more forked process where it may fork
     fork = may_fork()

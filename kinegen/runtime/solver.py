@@ -12,7 +12,6 @@ tangent space and the quaternion is updated by the exponential map.
 from __future__ import annotations
 
 import dataclasses
-import gc
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 import kinegen.runtime.linear as linear
+from kinegen.collector import collector_paused
 from kinegen.errors import (
     AssemblyError,
     BranchError,
@@ -509,13 +509,8 @@ class Solver:
         walks the objects a SymPy build left in the same process cost up to 40 % of a
         chain-14 trajectory.
         """
-        collecting = gc.isenabled()
-        gc.disable()
-        try:
+        with collector_paused():
             return self._trajectory(times, q0, inputs)
-        finally:
-            if collecting:
-                gc.enable()
 
     def _trajectory(
         self,
