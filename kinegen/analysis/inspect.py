@@ -555,7 +555,8 @@ def inspect(
     Euler angles: 4.4 s of its 11.8 s).
 
     Python's cyclic garbage collector is paused meanwhile (:mod:`kinegen.collector`): its passes over
-    SymPy's objects found next to nothing and cost ~12 % of ``kinegen inspect`` on the excavator.
+    SymPy's objects found next to nothing (``kinegen inspect`` of the excavator in Euler angles: 0.95×
+    the time with them, median of 8 alternating pairs).
     """
     with collector_paused():
         return _inspect(model, parametrization, case, t, q, numeric, budget, every_block)
