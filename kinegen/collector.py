@@ -21,7 +21,8 @@ from contextlib import contextmanager
 @contextmanager
 def collector_paused() -> Iterator[None]:
     """The block run with the cyclic garbage collector disabled; it is enabled again after the block
-    if it was before (a nested pause leaves that to the outermost)."""
+    if it was before (a nested pause leaves that to the outermost). As a decorator
+    (``@collector_paused()``), every call of the function is such a block."""
     was_enabled = gc.isenabled()
     gc.disable()
     try:

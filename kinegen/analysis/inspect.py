@@ -529,6 +529,7 @@ def _exact_values(system: System, q: np.ndarray, t_exact: sp.Expr) -> dict[sp.Sy
     return values
 
 
+@collector_paused()
 def inspect(
     model: Model,
     parametrization: Parametrization,
@@ -558,15 +559,6 @@ def inspect(
     SymPy's objects found next to nothing (``kinegen inspect`` of the excavator in Euler angles: 0.95×
     the time with them, median of 8 alternating pairs).
     """
-    with collector_paused():
-        return _inspect(model, parametrization, case, t, q, numeric, budget, every_block)
-
-
-def _inspect(
-    model: Model, parametrization: Parametrization, case: str | None, t: str | float, q: np.ndarray | None, numeric,
-    budget: float | None, every_block: bool,
-) -> Inspection:  # fmt: skip
-    """:func:`inspect`'s work."""
     from kinegen.model.expressions import parse
 
     model = model.at() if model.design else model

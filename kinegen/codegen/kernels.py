@@ -776,6 +776,7 @@ def supply_expressions(model: Model, coords: Coordinates, forces: tuple[sp.Symbo
     }  # fmt: skip
 
 
+@collector_paused()
 def describe(
     model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None, sensitivities: bool = True,
     forces: bool = True, printers: tuple[CodePrinter, ...] = (), meanwhile: Callable[[ModuleDescription], None] | None = None,
@@ -793,15 +794,6 @@ def describe(
     ``meanwhile(description)`` is called while that process works, on the description whose
     sensitivity sections are still None (e.g. to print the other sections: :meth:`Shapes.prepare`).
     Python's garbage collector is paused meanwhile (:mod:`kinegen.collector`)."""
-    with collector_paused():
-        return _describe(model, parametrization, systems, sensitivities, forces, printers, meanwhile)
-
-
-def _describe(
-    model: Model, parametrization: Parametrization, systems: dict[str, System] | None, sensitivities: bool, forces: bool,
-    printers: tuple[CodePrinter, ...], meanwhile: Callable[[ModuleDescription], None] | None,
-) -> ModuleDescription:  # fmt: skip
-    """:func:`describe`'s work."""
     systems = systems or build_systems(model, parametrization)
     first = next(iter(systems.values()))
     coords = first.coordinates

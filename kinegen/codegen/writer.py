@@ -25,6 +25,7 @@ from kinegen.textcache import code_fingerprint
 DEFAULT_TARGETS = ("python", "c-model")
 
 
+@collector_paused()
 def generate(
     model: Model,
     parametrization: Parametrization,
@@ -45,15 +46,6 @@ def generate(
     sensitivity kernels derived and printed in another from the start of the description
     (:func:`kinegen.codegen.kernels.describe`'s ``printers``): the same texts, so the same bytes,
     as one process prints. Python's garbage collector is paused meanwhile (:mod:`kinegen.collector`)."""
-    with collector_paused():
-        return _generate(model, parametrization, targets, ready, sensitivities)
-
-
-def _generate(
-    model: Model, parametrization: Parametrization, targets: tuple[str, ...], ready: Callable[[str, dict[str, str]], None] | None,
-    sensitivities: bool,
-) -> dict[str, dict[str, str]]:  # fmt: skip
-    """:func:`generate`'s work."""
     # the sensitivity kernels are derived and printed in a forked process by the targets' printers while
     # this one describes the rest and prints it (meanwhile), with one more forked process where it may fork
     fork = may_fork()
