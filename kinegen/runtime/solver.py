@@ -34,6 +34,7 @@ from kinegen.errors import (
     UnreachableError,
 )
 from kinegen.progress import counter
+from kinegen.runtime.buffers import Reusable
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
 from kinegen.symbolic.blocks import Block, block_triangular
@@ -169,6 +170,9 @@ class Solver:
         chord = self.options.chord
         #: chord iterations within a step (see SolverOptions.chord)
         self.chord = chord if chord is not None else (system.native is None and not self.options.predictor)
+        #: the large arrays of a trajectory (results, the C loop's inputs), made again only when the
+        #: last ones are still held (:mod:`kinegen.runtime.buffers`: no fresh pages a repeated solve)
+        self._arrays = Reusable()
 
     @cached_property
     def linear(self) -> linear.DenseLU | linear.BandLU:
@@ -565,7 +569,7 @@ class Solver:
             return u, ud, udd
 
         # every row up to the last step tried is written below (that step's, when it fails: NaN)
-        qs, vs, accs = np.empty((k, n)), np.empty((k, nv)), np.empty((k, nv))
+        qs, vs, accs = (self._arrays.empty(shape) for shape in ((k, n), (k, nv), (k, nv)))
         iterations, residuals, conditions = np.zeros(k, dtype=int), np.empty(k), np.empty(k)
         converged = np.zeros(k, dtype=bool)
         q = system.initial_q.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
@@ -574,7 +578,7 @@ class Solver:
         failure: KinegenError | None = None
         native = self._native_steps(not tabulated)
         if native is not None:
-            c_inputs = tuple(np.ascontiguousarray(x.T) for x in (u_all, ud_all, udd_all))
+            c_inputs = tuple(self._arrays.copy(x.T) for x in (u_all, ud_all, udd_all))
             c_iterations = np.zeros(k, dtype=np.intc)
         i = 0
         bar = counter(f"solve {system.model}/{system.case}", k, "step", PROGRESS_DELAY) if k >= PROGRESS_STEPS else None
@@ -639,7 +643,7 @@ class Solver:
                 bar.close()
         return Results(
             system, times[:k], qs[:k], vs[:k], accs[:k], iterations[:k], residuals[:k], conditions[:k],
-            u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
+            (c_inputs[0] if native is not None else self._arrays.copy(u_all.T))[:k], self.options.condition, converged[:k], failure,
         )  # fmt: skip
 
     @cached_property
