@@ -4,6 +4,7 @@ anything does (kinegen.runtime.buffers): repeated solves touch no fresh pages an
 from __future__ import annotations
 
 import gc
+import sys
 
 import numpy as np
 from conftest import generated_system
@@ -58,3 +59,32 @@ def test_repeated_solves_reuse_a_dropped_results_memory_never_a_held_ones_and_gi
     for name in ("q", "v", "a", "inputs"):
         np.testing.assert_array_equal(getattr(third, name), getattr(fresh, name))
         np.testing.assert_array_equal(getattr(second, name), getattr(fresh, name))  # untouched by the third solve
+
+
+def test_threads_sharing_one_never_get_the_same_array_at_once():
+    import threading
+
+    arrays = Reusable()
+    taken: list[list[int]] = [[] for _ in range(4)]
+    start = threading.Barrier(4)
+
+    def take(k: int) -> None:
+        start.wait()
+        for _ in range(300):
+            held = [arrays.empty((64,)) for _ in range(3)]  # held together: three distinct arrays
+            for a in held:
+                a.fill(k)
+            # three distinct arrays, and no other thread wrote into them meanwhile
+            taken[k].append(len({a.ctypes.data for a in held}) == 3 and all((a == k).all() for a in held))
+
+    threads = [threading.Thread(target=take, args=(k,)) for k in range(4)]
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # threads switch every few bytecodes: a race would show
+    try:
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    finally:
+        sys.setswitchinterval(interval)
+    assert all(len(flags) == 300 and all(flags) for flags in taken)

@@ -15,6 +15,7 @@ then a new one is made. Where reference counts do not exist (another Python), no
 from __future__ import annotations
 
 import sys
+import threading
 
 import numpy as np
 
@@ -38,26 +39,29 @@ _FREE = _count_of_kept()
 class Reusable:
     """Uninitialized arrays (as :func:`numpy.empty`), each handed out again by a later call for
     the same shape and type once nothing but this object refers to it. At most
-    :data:`KEPT_BYTES` are kept, the oldest let go first."""
+    :data:`KEPT_BYTES` are kept, the oldest let go first. Threads may share one: an array is found
+    free and handed out under a lock, and its taker's reference exists before the lock is let go."""
 
     def __init__(self) -> None:
         self._kept: list[np.ndarray] = []  # oldest first
+        self._lock = threading.Lock()
 
     def empty(self, shape: tuple[int, ...], dtype: type | str = float) -> np.ndarray:
         """An array of ``shape`` and ``dtype`` whose values are unspecified (stale values of an
         earlier call's user, or whatever new memory holds)."""
         shape, dtype = tuple(int(n) for n in shape), np.dtype(dtype)
-        kept = self._kept
-        for i in range(len(kept)):
-            if kept[i].shape == shape and kept[i].dtype == dtype and sys.getrefcount(kept[i]) == _FREE:  # this list's alone
-                return kept[i]
-        array = np.empty(shape, dtype=dtype)
-        if _FREE is not None and array.nbytes <= KEPT_BYTES:
-            held = sum(a.nbytes for a in kept)
-            while held + array.nbytes > KEPT_BYTES:
-                held -= kept.pop(0).nbytes
-            kept.append(array)
-        return array
+        with self._lock:
+            kept = self._kept
+            for i in range(len(kept)):
+                if kept[i].shape == shape and kept[i].dtype == dtype and sys.getrefcount(kept[i]) == _FREE:  # this list's alone
+                    return kept[i]
+            array = np.empty(shape, dtype=dtype)
+            if _FREE is not None and array.nbytes <= KEPT_BYTES:
+                held = sum(a.nbytes for a in kept)
+                while held + array.nbytes > KEPT_BYTES:
+                    held -= kept.pop(0).nbytes
+                kept.append(array)
+            return array
 
     def copy(self, x: np.ndarray) -> np.ndarray:
         """A C-contiguous copy of ``x`` (as :func:`numpy.ascontiguousarray` of a view, always a new
