@@ -5,11 +5,12 @@ A trajectory's positions, velocities and accelerations are large arrays, new at 
 time: glibc's allocator maps such a block and unmaps it when it is freed, or gives its heap's
 top back, so a solve repeated in one process touched every page of its results afresh
 (chain-14: ~620 page faults a solve, chain-100 ~2,300; ~10 % of either solve's time in a loop
-that drops each result, docs/performance.md). :class:`Reusable` keeps the arrays of a solver's last solves and hands
-one out again for the same shape and type once no other reference to it is left -- the
-:class:`~kinegen.runtime.results.Results` that held it and every view of it are gone, which
-CPython's reference count tells exactly. An array still held anywhere is never handed out:
-then a new one is made. Where reference counts do not exist (another Python), nothing is kept.
+that drops each result, docs/performance.md). :class:`Reusable` keeps the arrays of a solver's
+last solves and hands one out again for the same shape and type once no other reference to it
+is left -- the :class:`~kinegen.runtime.results.Results` that held it and every view of it are
+gone, which CPython's reference count tells exactly. An array still held anywhere is never
+handed out: then a new one is made. Where reference counts do not exist (another Python),
+nothing is kept.
 """
 
 from __future__ import annotations
