@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gc
 import sys
+import threading
 
 import numpy as np
 from conftest import generated_system
@@ -62,16 +63,14 @@ def test_repeated_solves_reuse_a_dropped_results_memory_never_a_held_ones_and_gi
 
 
 def test_threads_sharing_one_never_get_the_same_array_at_once():
-    import threading
-
     arrays = Reusable()
-    taken: list[list[int]] = [[] for _ in range(4)]
+    taken: list[list[bool]] = [[] for _ in range(4)]
     start = threading.Barrier(4)
 
     def take(k: int) -> None:
         start.wait()
         for _ in range(300):
-            held = [arrays.empty((64,)) for _ in range(3)]  # held together: three distinct arrays
+            held = [arrays.empty((64,)) for _ in range(3)]  # held together
             for a in held:
                 a.fill(k)
             # three distinct arrays, and no other thread wrote into them meanwhile

@@ -65,8 +65,8 @@ class Reusable:
             return array
 
     def copy(self, x: np.ndarray) -> np.ndarray:
-        """A C-contiguous copy of ``x`` (as :func:`numpy.ascontiguousarray` of a view, always a new
-        array of values) in an array of :meth:`empty`."""
+        """A C-contiguous copy of ``x``'s values (what :func:`numpy.ascontiguousarray` of a view gives),
+        in an array of :meth:`empty`: a kept one when one is free."""
         out = self.empty(x.shape, x.dtype)
         np.copyto(out, x)
         return out
