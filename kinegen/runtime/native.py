@@ -48,13 +48,13 @@ SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / 
 #: flags of the runtime's library (the standalone target's Makefile has its own). The library
 #: is built on the machine that runs it, so the solver and the model may use that machine's
 #: instructions (-march=native: the solver ~20 % faster; the model's kernels and written-out
-#: solves take the three-operand scalar forms, a compiled step 5-12 % faster, docs/performance.md).
-#: With -std=c99 no floating-point contraction or reassociation is allowed, and -O1 does not
-#: vectorize, so the results are the same to the bit. The model's straight-line kernels compile at
-#: -O1 without the second scheduling pass: half the compile time of -O2 for kernels ~10 % slower,
-#: a few percent of a step. Both compile in parallel, then link.
+#: solves take the three-operand scalar forms, a compiled step 5-13 % faster, docs/performance.md).
+#: No floating-point contraction (-ffp-contract=off: GCC's default under -std=c99, not Clang's) or
+#: reassociation is allowed, and -O1 does not vectorize, so the results are the same to the bit. The
+#: model's straight-line kernels compile at -O1 without the second scheduling pass: half the compile
+#: time of -O2 for kernels ~10 % slower, a few percent of a step. Both compile in parallel, then link.
 PORTABLE = "-march=native"  # dropped where the compiler refuses it
-COMMON_FLAGS = ("-std=c99", "-fPIC")
+COMMON_FLAGS = ("-std=c99", "-ffp-contract=off", "-fPIC")
 SOLVER_FLAGS = ("-O2", PORTABLE)
 MODEL_FLAGS = ("-O1", "-fno-schedule-insns2", PORTABLE)
 _WARNED: set[str] = set()
