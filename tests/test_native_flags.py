@@ -38,3 +38,37 @@ def test_the_models_c_for_this_machine_solves_to_the_same_bits(stem: str, case: 
     assert here != there  # two libraries, two compiles
     for a, b in zip(mine, theirs):
         assert a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def test_a_compiler_that_refuses_both_optional_flags_still_builds_a_library_that_solves_alike(tmp_path) -> None:
+    """A ``cc`` that knows neither ``-march=native`` nor ``-ffp-contract=off`` (the runtime's
+    :data:`~kinegen.runtime.native.OPTIONAL_FLAGS`): each refused compile is tried again without them,
+    one at a time, and the library so built (the solver's object too) solves the slider-crank to the
+    bits the usual one gives -- GCC under ``-std=c99`` fuses nothing either way."""
+    import hashlib
+    import os
+    import subprocess
+    import sys
+
+    real = shutil.which("cc") or shutil.which("gcc")
+    refused = tmp_path / "refused.txt"
+    fake = tmp_path / "cc"
+    fake.write_text(
+        '#!/bin/sh\nbad=0\nfor a in "$@"; do case "$a" in -march=native|-ffp-contract=off)\n'
+        f'  echo "$a" >> {refused}; bad=1;; esac; done\n'
+        f'if [ $bad = 1 ]; then echo "cc: error: unknown option" >&2; exit 1; fi\nexec {real} "$@"\n'
+    )
+    fake.chmod(0o755)
+    solve = (
+        "import hashlib, sys; import numpy as np\n"
+        "from kinegen.runtime import Solver, SolverOptions, from_module, load_module\n"
+        f"m = load_module({str(GENERATED / 'slider_crank_euler_parameters.py')!r})\n"
+        "r = Solver(from_module(m, 'run', compiled=True), SolverOptions(condition='estimate')).solve()\n"
+        "print(hashlib.sha256(b''.join(np.ascontiguousarray(x).tobytes() for x in (r.q, r.v, r.a, r.conditions))).hexdigest())\n"
+    )
+    env = {**os.environ, "CC": str(fake), "KINEGEN_CACHE": str(tmp_path / "cache")}
+    done = subprocess.run([sys.executable, "-c", solve], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert {"-march=native", "-ffp-contract=off"} <= set(refused.read_text().split())  # each refused, then left out
+    _, usual = _solved("slider_crank_euler_parameters", "run", SolverOptions(condition="estimate"))
+    assert done.stdout.strip() == hashlib.sha256(b"".join(np.ascontiguousarray(x).tobytes() for x in (usual[0], usual[1], usual[2], usual[5]))).hexdigest()

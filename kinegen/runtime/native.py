@@ -54,7 +54,10 @@ SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / 
 #: model's straight-line kernels compile at -O1 without the second scheduling pass: half the compile
 #: time of -O2 for kernels ~10 % slower, a few percent of a step. Both compile in parallel, then link.
 PORTABLE = "-march=native"  # dropped where the compiler refuses it
-COMMON_FLAGS = ("-std=c99", "-ffp-contract=off", "-fPIC")
+NO_CONTRACTION = "-ffp-contract=off"  # dropped too where the compiler refuses it
+#: the flags a compiler may not know, dropped in this order from a command it refuses (_run_all)
+OPTIONAL_FLAGS = (PORTABLE, NO_CONTRACTION)
+COMMON_FLAGS = ("-std=c99", NO_CONTRACTION, "-fPIC")
 SOLVER_FLAGS = ("-O2", PORTABLE)
 MODEL_FLAGS = ("-O1", "-fno-schedule-insns2", PORTABLE)
 _WARNED: set[str] = set()
@@ -340,7 +343,7 @@ def start_solver_object() -> Callable[[], None]:
 class _Started:
     """One object's compiler process, started by :func:`start_solver_object` with the object's lock held
     (:func:`_compiling`) and its sources in a private folder; :meth:`finish` waits for it, moves the object
-    into the cache (a refused -march=native compiled again without it, as :func:`_run_all` does) and lets
+    into the cache (a refused optional flag compiled again without it, as :func:`_run_all` does) and lets
     the lock and the folder go. Stopped at this process's exit if never finished."""
 
     def __init__(self, compiler: str, store: Path, sources: dict[str, str], planned: tuple[str, int | None, list[str], Path]) -> None:
@@ -375,7 +378,7 @@ class _Started:
             if self._process is not None:
                 self._process.communicate()
                 if self._process.returncode != 0:
-                    _run_all(self._command[0], [self._command])  # (again, for -march=native's refusal or the error)
+                    _run_all(self._command[0], [self._command])  # (again, for an optional flag's refusal or the error)
                 _publish(self._made, self._cached)
         except (KinegenError, OSError):
             pass
@@ -397,14 +400,18 @@ def _stopped(process: subprocess.Popen, held: ExitStack) -> None:
 
 
 def _run_all(compiler: str, commands: list[list[str]]) -> None:
-    """Run the compiler commands in parallel; a refused -march=native is retried without it."""
+    """Run the compiler commands in parallel; a refused command is tried again without its
+    :data:`OPTIONAL_FLAGS`, one at a time (-march=native first, then -ffp-contract=off); the error
+    reported is the last try's."""
     try:
         running = [subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in commands]
         results = [(c, *p.communicate(), p.returncode) for c, p in zip(commands, running)]
         for command, _, error, code in results:
-            if code != 0 and PORTABLE in command:
-                retry = subprocess.run([a for a in command if a != PORTABLE], capture_output=True, text=True)
-                error, code = retry.stderr, retry.returncode
+            for flag in OPTIONAL_FLAGS:
+                if code != 0 and flag in command:
+                    command = [a for a in command if a != flag]
+                    retry = subprocess.run(command, capture_output=True, text=True)
+                    error, code = retry.stderr, retry.returncode
             if code != 0:
                 last = error.strip().splitlines()[-1] if error.strip() else f"exit {code}"
                 raise CompileError(f"the C compiler failed: {last}")
