@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_euler_parameters.h': 'ce489b3f87321e89e4603ef36bae73ea28b5921221b82400321868b5145d2011', 'boom_dual_euler_parameters.c': '8d96a5011de0196ddc06a1f0f3be10a5a5ee8347529082f8760387ef3f8c8a6a'}
+C_FILES = {'boom_dual_euler_parameters.h': 'ce489b3f87321e89e4603ef36bae73ea28b5921221b82400321868b5145d2011', 'boom_dual_euler_parameters.c': 'ab27ec88d92b32a37fc0907a642bfaad06b1117d4bbbdc85ea378782a636bcf7'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': '19ef118d5d639af58f2d18c696599ad06874553cb2e3f289b6fc7261c369e406'}
+C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': 'ef8a10c0c724ce002d7d45fbfe22031981abd70281da3b2ebec873a131143683'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

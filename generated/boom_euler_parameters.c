@@ -155,7 +155,7 @@ static void compute_input_ranges_swing(const double *span, double *out) {
     const kinegen_interval r2 = kinegen_iv_const(1.5707963267948963, 1.5707963267948968);
     const kinegen_interval r3 = kinegen_iv_add(r2, r1);
     const kinegen_interval r4 = kinegen_iv_const(2.0, 2.0);
-    const kinegen_interval r5 = kinegen_iv_mul(r4, r0);
+    const kinegen_interval r5 = kinegen_iv_scale(2.0, r0);
     out[0] = r3.lo;
     out[3] = r3.hi;
     out[1] = r5.lo;

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_parameters.h': '6050a3639df61a7808738fd85997fae7ff454a963d6a1e64d78a07326590e990', 'boom_euler_parameters.c': '77a502a2153f0ac879b4aea7e111ffaef562c8b3a57d8dbdae309a0814c474a4'}
+C_FILES = {'boom_euler_parameters.h': '6050a3639df61a7808738fd85997fae7ff454a963d6a1e64d78a07326590e990', 'boom_euler_parameters.c': 'b7d445eff79c333dfa5286b894f4f94672d4149a7350c79b7ec5c3dec7428d48'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_zxz.h': 'e51acb4e3a94909963289418105c1eeeb83d581b53a1a24a2c21d6d428b0ed73', 'boom_euler_zxz.c': '99bd174f9f1345da412a44d350fbd63f943b4e3fa0f71673ee844678706adf3c'}
+C_FILES = {'boom_euler_zxz.h': 'e51acb4e3a94909963289418105c1eeeb83d581b53a1a24a2c21d6d428b0ed73', 'boom_euler_zxz.c': 'fb34c73e9faf4c094f75cadf57aeddefefd4fa988eb03747e997fcbb41d1f310'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

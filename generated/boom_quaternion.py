@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_quaternion.h': '4eb07c2971cf2c4bcb08513f02d429a1e2c8486acaf573ff11152cba049cd5b0', 'boom_quaternion.c': '77ecd336a4b7976dbe3ab74cc3b72ca3856b3a8c553ab81442e5bf6f4483a611'}
+C_FILES = {'boom_quaternion.h': '4eb07c2971cf2c4bcb08513f02d429a1e2c8486acaf573ff11152cba049cd5b0', 'boom_quaternion.c': '0ce0040ef8741fd2cc465b915aed1f6a0fa199c31832cb58182ade592ad1c6be'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

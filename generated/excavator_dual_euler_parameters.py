@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_euler_parameters.h': '939aa29e11e9b05fdd4320ad9c94fefdc2cc91f26f765c21ccdd65b2257b703a', 'excavator_dual_euler_parameters.c': '6d2b09134f77bb44f77e91ed09fec6b2ddcba73fb2b49de6ad23fde6608d04d2'}
+C_FILES = {'excavator_dual_euler_parameters.h': '939aa29e11e9b05fdd4320ad9c94fefdc2cc91f26f765c21ccdd65b2257b703a', 'excavator_dual_euler_parameters.c': '54bdc6a85abd6b8c36f302af971665db3992932423a8a1d5bb968889700b3e9b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

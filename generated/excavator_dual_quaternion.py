@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_quaternion.h': 'eddb37a94c4d2312fe4536a243d5f5d83c88a2b9b0b003561d59e0094b4b0c96', 'excavator_dual_quaternion.c': '1db0d9a88b8f438c5405bd89cb420365ec50667fbaf128f8207094bd4a5bb2f2'}
+C_FILES = {'excavator_dual_quaternion.h': 'eddb37a94c4d2312fe4536a243d5f5d83c88a2b9b0b003561d59e0094b4b0c96', 'excavator_dual_quaternion.c': 'b78f5d3ecbd6fbbd66c2187c6ee5c869d64d114de117db376a46996ef19de0d4'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_parameters.h': '73d0edded1955ea537e264580240443250425e877ee4486898d605a7d2414867', 'excavator_euler_parameters.c': '3370f6ac4517d44fbbec39c8302e9c42d5967d423d3fdea0907d898568b69504'}
+C_FILES = {'excavator_euler_parameters.h': '73d0edded1955ea537e264580240443250425e877ee4486898d605a7d2414867', 'excavator_euler_parameters.c': '177f02739386549ffa16c640a9febca5e539a07ef75f4d4c2d32e464981d6cbe'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

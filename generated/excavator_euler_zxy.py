@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxy.h': 'f4114b4720d374dbe2b702f9a2ca514e8495a4d83bd1e22076405708dec2df73', 'excavator_euler_zxy.c': '41bd34df921c34988fc033d589668c52bb53aa8e86d7974b9a7aae93e31aba0c'}
+C_FILES = {'excavator_euler_zxy.h': 'f4114b4720d374dbe2b702f9a2ca514e8495a4d83bd1e22076405708dec2df73', 'excavator_euler_zxy.c': 'cf7bc3b68fffd8c5b4e7b94ca1873c14f6520f73c6c14c047ac848498623ae7c'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

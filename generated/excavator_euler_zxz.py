@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxz.h': 'f25ad9b46dac6d8e99908c4ca558036fbcd1000214709b3f6118d932b650d44c', 'excavator_euler_zxz.c': '8bc2794a6f8ae08306fe163d418e5bb3aa1ead4fdad98d3db0dcabc5ee9c3199'}
+C_FILES = {'excavator_euler_zxz.h': 'f25ad9b46dac6d8e99908c4ca558036fbcd1000214709b3f6118d932b650d44c', 'excavator_euler_zxz.c': '9cc6442a384c28ff036f95dde3170bf6adf8969b6b2dd26047503c88daf9d9a2'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

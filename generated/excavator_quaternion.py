@@ -93,7 +93,7 @@ KERNELS = {
     'frames_d': (('q', 'v', 'a', 'w', 'y', 'z'), ('frames_d',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_quaternion.h': '01ed06bf6e6ac588199715ef5c60181f77ef6785aaa35e43b2cc3462b45dd029', 'excavator_quaternion.c': '4b1b1392aad0b3b0d01d63ba21cdbdb1f4f0b39af15b5142c38177b2e6fe0f6e'}
+C_FILES = {'excavator_quaternion.h': '01ed06bf6e6ac588199715ef5c60181f77ef6785aaa35e43b2cc3462b45dd029', 'excavator_quaternion.c': 'ea62273e41f7f31020ea8b7d95386b3d4969088cd8ed0e26c98582448604ad76'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_dual_euler_parameters.h': 'e50ff4973adda284482d32bb3344501c43c625a663995b8e6ae784b32a48c4d2', 'four_bar_dual_euler_parameters.c': '41532227a6363126f61b74513a0a24c1a9436558c4f0d2652757f3e58787fc5e'}
+C_FILES = {'four_bar_dual_euler_parameters.h': 'e50ff4973adda284482d32bb3344501c43c625a663995b8e6ae784b32a48c4d2', 'four_bar_dual_euler_parameters.c': '816bf29aeae29af19e7f082f98b1c4696ca1ab4bdd0563b1d3c9ddd86044182a'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_dual_quaternion.h': '481e683d0c2e0bac88c7c91533948311993b9b85aece03539d6a62edf794f9c3', 'four_bar_dual_quaternion.c': '63960eedbf5d6f56c16ed82537b240638b49979aa1a7fe69fdf875664ffe5416'}
+C_FILES = {'four_bar_dual_quaternion.h': '481e683d0c2e0bac88c7c91533948311993b9b85aece03539d6a62edf794f9c3', 'four_bar_dual_quaternion.c': '54f593f79623a2b8eedcdcfa271aee52892989da10807014331a9a8d537c5120'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

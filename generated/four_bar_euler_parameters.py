@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_euler_parameters.h': 'be185641fd04fd5545b1d72583129673779e38fc50d5daed290dfdc84b534a6a', 'four_bar_euler_parameters.c': 'bc64055ff2edc77ede946e22c5b8c23d6604bb52d1ac89ca1be75ea930a21b3f'}
+C_FILES = {'four_bar_euler_parameters.h': 'be185641fd04fd5545b1d72583129673779e38fc50d5daed290dfdc84b534a6a', 'four_bar_euler_parameters.c': 'e322029f16f650158779f3a6eab2600ecafb9d198f89803dc444407aa9436a05'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

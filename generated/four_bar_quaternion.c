@@ -327,13 +327,13 @@ static void compute_input_ranges_crank_turn(const double *span, double *out) {
     const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
     const kinegen_interval r1 = kinegen_iv_const(6.283185307179585, 6.283185307179587);
     const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
-    const kinegen_interval r3 = kinegen_iv_sin(r2);
+    kinegen_interval r3, r9;
+    kinegen_iv_sincos(r2, &r3, &r9);
     const kinegen_interval r4 = kinegen_iv_const(0.29999999999999993, 0.30000000000000004);
     const kinegen_interval r5 = kinegen_iv_mul(r4, r3);
     const kinegen_interval r6 = kinegen_iv_add(r2, r5);
     const kinegen_interval r7 = kinegen_iv_const(0.5, 0.5);
     const kinegen_interval r8 = kinegen_iv_add(r7, r6);
-    const kinegen_interval r9 = kinegen_iv_cos(r2);
     const kinegen_interval r10 = kinegen_iv_const(1.8849555921538756, 1.884955592153876);
     const kinegen_interval r11 = kinegen_iv_mul(r10, r9);
     const kinegen_interval r12 = kinegen_iv_add(r1, r11);

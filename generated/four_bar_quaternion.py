@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_quaternion.h': '7046dffbf25ed7169657b01284691b5dfd8bfe564b616f8e225eedf0282cfe8d', 'four_bar_quaternion.c': 'd45a4a77d5e3665713eb9370e4b7cf4fa764bd9c6417323ead71270162c4ae75'}
+C_FILES = {'four_bar_quaternion.h': '7046dffbf25ed7169657b01284691b5dfd8bfe564b616f8e225eedf0282cfe8d', 'four_bar_quaternion.c': '1eda468551519378020cf04d23c1cf712c587ef9297fea6abff433562c09887d'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

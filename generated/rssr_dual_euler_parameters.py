@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_euler_parameters.h': 'b1a9d9a5dbf39b498e9ef13ed23889db0fba081b58ce437324e1581ecb369f34', 'rssr_dual_euler_parameters.c': '31f2b48faddb611e79fbcb2d103278499a12a1f5ecee8736e0915723cda4df9a'}
+C_FILES = {'rssr_dual_euler_parameters.h': 'b1a9d9a5dbf39b498e9ef13ed23889db0fba081b58ce437324e1581ecb369f34', 'rssr_dual_euler_parameters.c': 'f0200d16ce3e28bc636efce5694f1096570072009c42f7a445ad61aa2d3a2639'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': 'ec43a7728d583fcf947f678de19ed0249b7ecc5cb79a8d8a5335c0f69a57005c'}
+C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': 'cd7438c2b8d7a080a6eb555547c45ebd51f7ce4835434758be421549810bf6d1'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

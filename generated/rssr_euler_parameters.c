@@ -383,7 +383,8 @@ static void compute_input_ranges_turn(const double *span, double *out) {
     const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
     const kinegen_interval r1 = kinegen_iv_const(3.1415926535897927, 3.1415926535897936);
     const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
-    const kinegen_interval r3 = kinegen_iv_cos(r2);
+    kinegen_interval r12, r3;
+    kinegen_iv_sincos(r2, &r12, &r3);
     const kinegen_interval r4 = kinegen_iv_const(-0.20000000000000004, -0.19999999999999998);
     const kinegen_interval r5 = kinegen_iv_mul(r4, r3);
     const kinegen_interval r6 = kinegen_iv_const(1.0, 1.0);
@@ -392,7 +393,6 @@ static void compute_input_ranges_turn(const double *span, double *out) {
     const kinegen_interval r9 = kinegen_iv_const(6.283185307179585, 6.283185307179587);
     const kinegen_interval r10 = kinegen_iv_mul(r9, r8);
     const kinegen_interval r11 = kinegen_iv_mul(r9, r7);
-    const kinegen_interval r12 = kinegen_iv_sin(r2);
     const kinegen_interval r13 = kinegen_iv_mul(r0, r12);
     const kinegen_interval r14 = kinegen_iv_const(3.947841760435743, 3.947841760435744);
     const kinegen_interval r15 = kinegen_iv_mul(r14, r13);

@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_euler_parameters.h': 'd4273fc4f63c4c3e0ee90391d09ed9385419e71f72d4810542f7277f043e50e0', 'rssr_euler_parameters.c': '100885d12d3e113f33e9fb0523607e43b1466d4b08efddd64bf24c75c2287419'}
+C_FILES = {'rssr_euler_parameters.h': 'd4273fc4f63c4c3e0ee90391d09ed9385419e71f72d4810542f7277f043e50e0', 'rssr_euler_parameters.c': '939cd1ac7c4e34ec439d283a78f423bfc9b93190d1691791a57fb8063c6e5705'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

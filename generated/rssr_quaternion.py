@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_quaternion.h': 'c51813853e6613745c8d5bed2a741f7171edd95e34ab40af719e3f0bd8f4dbe5', 'rssr_quaternion.c': 'a09e70b711a0c8764ffecb375c7e9d08770a433c1532ccaa5d8fb29aba9b80b9'}
+C_FILES = {'rssr_quaternion.h': 'c51813853e6613745c8d5bed2a741f7171edd95e34ab40af719e3f0bd8f4dbe5', 'rssr_quaternion.c': '743b43b329bf7a07cd7145e025ba3a1a728cac55254fd5be9e68eb4fc615f5d4'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

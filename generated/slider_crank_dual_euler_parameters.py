@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_euler_parameters.h': 'd98976895b058b7ce2a22b1a7a3db75d5588992a58cab47808768ed9d44c8ca5', 'slider_crank_dual_euler_parameters.c': '0f2b25e2f5886ad7577fb9403859474feb1db605f3c931d5c76cced7f4305f54'}
+C_FILES = {'slider_crank_dual_euler_parameters.h': 'd98976895b058b7ce2a22b1a7a3db75d5588992a58cab47808768ed9d44c8ca5', 'slider_crank_dual_euler_parameters.c': '5ae3c1c48dc734e6f5734537e1d2f5965f9a3941ef1d9b57a52f4c48dac22495'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -327,8 +327,7 @@ static void compute_inputs_run(double t, double *out) {
 static void compute_input_ranges_run(const double *span, double *out) {
     const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
     const kinegen_interval r1 = kinegen_iv_powi(r0, 2);
-    const kinegen_interval r2 = kinegen_iv_const(0.5, 0.5);
-    const kinegen_interval r3 = kinegen_iv_mul(r2, r1);
+    const kinegen_interval r3 = kinegen_iv_scale(0.5, r1);
     const kinegen_interval r4 = kinegen_iv_const(6.283185307179585, 6.283185307179587);
     const kinegen_interval r5 = kinegen_iv_mul(r4, r0);
     const kinegen_interval r6 = kinegen_iv_add(r3, r5);

@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_euler_parameters.h': '1109466c54a5aac0e4819ae848f4e31dec53e4adf1b417fa54ed1702914c5219', 'slider_crank_euler_parameters.c': 'e7140658fd09796c4e917e72759485676f49c26a67f3f1a282ac743b7e865885'}
+C_FILES = {'slider_crank_euler_parameters.h': '1109466c54a5aac0e4819ae848f4e31dec53e4adf1b417fa54ed1702914c5219', 'slider_crank_euler_parameters.c': '7e5a68f05559780c6f4f5c6c2991e7f63059ce33557474d278826d112e0d5ff0'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

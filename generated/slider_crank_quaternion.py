@@ -50,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_quaternion.h': '3313ea9d478ed5043437becbf31aca06ef659ddc4729b34cff05c83ab33825af', 'slider_crank_quaternion.c': 'bf88eb41437c3d7b96465697031a3624295943d14c6ce7238f13b81becbbda34'}
+C_FILES = {'slider_crank_quaternion.h': '3313ea9d478ed5043437becbf31aca06ef659ddc4729b34cff05c83ab33825af', 'slider_crank_quaternion.c': '9d5a88dc1386ade1edaaec1af0e90ef0c7270df742267785082f8c1c445b195b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -288,6 +288,67 @@ def test_each_c_helper_is_the_python_one(c_evaluator, function):
         assert np.allclose(c[finite], python[finite], rtol=1e-14, atol=1e-300), (function, span, c, python)
 
 
+@pytest.fixture(scope="module")
+def fused_helpers(tmp_path_factory):
+    """A program printing, per line of stdin (c, lo, hi), kinegen_iv_scale(c, [lo, hi]) and kinegen_iv_mul([c, c],
+    [lo, hi]), then kinegen_iv_sincos([lo, hi]) and kinegen_iv_sin, kinegen_iv_cos of it, as the bits in hex."""
+    if CC is None:
+        pytest.skip("no C compiler")
+    folder = tmp_path_factory.mktemp("fused")
+    (folder / "kinegen_interval.h").write_text((config.SOLVER / "kinegen_interval.h").read_text())
+    (folder / "fused.c").write_text(r"""
+#include <stdio.h>
+#include <string.h>
+#include "kinegen_interval.h"
+static void show(kinegen_interval a) {
+    unsigned long long lo, hi;
+    memcpy(&lo, &a.lo, sizeof lo);
+    memcpy(&hi, &a.hi, sizeof hi);
+    printf(" %016llx %016llx", lo, hi);
+}
+int main(void) {
+    double c, lo, hi;
+    while (scanf("%lf %lf %lf", &c, &lo, &hi) == 3) {
+        kinegen_interval a = kinegen_iv_const(lo, hi), s, k;
+        show(kinegen_iv_scale(c, a));
+        show(kinegen_iv_mul(kinegen_iv_const(c, c), a));
+        kinegen_iv_sincos(a, &s, &k);
+        show(s);
+        show(k);
+        show(kinegen_iv_sin(a));
+        show(kinegen_iv_cos(a));
+        printf("\n");
+    }
+    return 0;
+}
+""")
+    program = folder / "fused"
+    # the runtime's model flags: where the compiler fuses sin and cos into one sincos call
+    subprocess.run([CC, "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", "-pedantic", "-o", str(program), str(folder / "fused.c"), "-lm"],
+                   check=True)  # fmt: skip
+    return program
+
+
+def test_fused_c_helpers_are_the_helpers_they_replace(fused_helpers):
+    """kinegen_iv_scale (what the generated code prints for a point constant times an interval) is
+    kinegen_iv_mul of [c, c], and kinegen_iv_sincos (for sin and cos of one interval) is kinegen_iv_sin
+    and kinegen_iv_cos, to the bit: on random factors and intervals (narrow as a step's, wide, beyond a
+    period, huge), with zeros, infinities and signed zeros among them."""
+    rng = np.random.default_rng(2026_12_04)
+    n = 3000
+    lows = np.concatenate([rng.uniform(-10.0, 10.0, n), rng.uniform(-1e6, 1e6, n // 3), [0.0, -0.0, -np.inf, 1.0, -np.inf, 3.0]])
+    widths = np.concatenate([rng.choice([0.0, 1e-3, 0.3, 2.0, 7.0], n), rng.uniform(0.0, 10.0, n // 3), [0.0, 0.0, 1.0, np.inf, np.inf, 0.0]])
+    highs = lows + widths
+    factors = np.concatenate([rng.choice([-0.5, 0.5, 2.0, -1.0, 1e-300, 3.0], n), rng.normal(0.0, 1e3, n // 3), [0.0, -0.0, 0.0, -0.0, 2.0, np.inf]])
+    text = "\n".join(f"{float(c)!r} {float(lo)!r} {float(hi)!r}" for c, lo, hi in zip(factors, lows, highs)) + "\n"
+    done = subprocess.run([str(fused_helpers)], input=text, capture_output=True, text=True, check=True)
+    rows = [line.split() for line in done.stdout.splitlines()]
+    assert len(rows) == len(lows)
+    for (c, lo, hi), row in zip(zip(factors, lows, highs), rows):
+        assert row[0:2] == row[2:4], ("scale", c, lo, hi)
+        assert row[4:8] == row[8:12], ("sincos", lo, hi)
+
+
 # ---- the generated kernels ------------------------------------------------------------------------
 @pytest.mark.parametrize("compiled", [False, True])
 def test_generated_input_ranges_hold_the_cases_inputs(compiled):

@@ -30,6 +30,7 @@ from sympy.printing.codeprinter import CodePrinter
 
 import kinegen.codegen.backends.c.config as config
 from kinegen.codegen.backends.c.printer import CPrinter
+from kinegen.codegen.intervals import IntervalProgram
 from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Plan, Zeros
 from kinegen.codegen.shapes import Block, Group, Printing, eliminate
 from kinegen.codegen.sharing import SharedTexts
@@ -242,6 +243,33 @@ def input_pieces(arrays: _PlanArrays, piece_rows: list[int], n_inputs: int) -> l
     return [bisect.bisect_right(piece_rows, position[rows - n_inputs + k]) - 1 for k in range(n_inputs)]
 
 
+def _enclosure_plan(program: IntervalProgram) -> tuple[dict[int, tuple[float, int]], set[int], dict[int, tuple[int, int]]]:
+    """How an interval program's registers are printed in C, the same bits as one helper each: ``scaled``,
+    the products of a point constant [c, c] and a register (kinegen_iv_scale: c and that register); ``pairs``,
+    at the first of the sine and the cosine of one register, both (kinegen_iv_sincos: sine, cosine); ``printed``,
+    the registers that get a line -- not a constant used only as a scale factor, nor a pair's second."""
+    operations = program.operations
+    scaled: dict[int, tuple[float, int]] = {}
+    for k, operation in enumerate(operations):
+        if operation.op == "mul":
+            for position, a in enumerate(operation.args):
+                factor = operations[a]
+                if factor.op == "const" and factor.value[0] == factor.value[1]:
+                    scaled[k] = (factor.value[0], operation.args[1 - position])
+                    break
+    used = {r for r in program.outputs if r is not None}
+    for k, operation in enumerate(operations):
+        used.update((scaled[k][1],) if k in scaled else operation.args)
+    trig: dict[int, dict[str, int]] = {}
+    for k, operation in enumerate(operations):
+        if operation.op in ("sin", "cos"):
+            trig.setdefault(operation.args[0], {})[operation.op] = k
+    pairs = {min(both.values()): (both["sin"], both["cos"]) for both in trig.values() if len(both) == 2}
+    seconds = {max(both) for both in pairs.values()}
+    printed = {k for k, operation in enumerate(operations) if k > 0 and k not in seconds and (operation.op != "const" or k in used)}
+    return scaled, printed, pairs
+
+
 class _Model:
     """The C functions and tables of one model."""
 
@@ -311,10 +339,20 @@ class _Model:
         name = f"compute_{enclosure.name}"
         if enclosure.name not in self.sections:
             program = enclosure.program
+            scaled, printed, pairs = _enclosure_plan(program)
             lines = ["const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);"]
             for k, operation in enumerate(program.operations[1:], start=1):
                 op, args = operation.op, ", ".join(f"r{a}" for a in operation.args)
-                if op == "const":
+                if k not in printed:
+                    continue
+                if k in pairs:  # sin and cos of one interval: one call
+                    sine, cosine = pairs[k]
+                    lines += [f"kinegen_interval r{sine}, r{cosine};", f"kinegen_iv_sincos({args}, &r{sine}, &r{cosine});"]
+                    continue
+                if k in scaled:
+                    factor, other = scaled[k]
+                    call = f"kinegen_iv_scale({_double(factor)}, r{other})"
+                elif op == "const":
                     call = f"kinegen_iv_const({_double(operation.value[0])}, {_double(operation.value[1])})"
                 elif op == "powi":
                     call = f"kinegen_iv_powi({args}, {operation.value})"
