@@ -440,7 +440,7 @@ static int run(const kinegen_model *m, int k) {
         states[k][i][m->n_q + 2 * m->n_v] = s.condition;
         states[k][i][m->n_q + 2 * m->n_v + 1] = i > 0 ? s.bound : 0.0; /* the certificate's alpha omega */
     }
-    if (k == 0) { /* the written-out solves against Phi_q itself (s.jac: its values the factors are of) */
+    if (k == 0) { /* the written-out solves against Phi_q itself (s.jac_q: its values the factors are of) */
         double c[FOUR_BAR_QUATERNION_N_V], x[FOUR_BAR_QUATERNION_N_V], xt[FOUR_BAR_QUATERNION_N_V];
         double w[FOUR_BAR_QUATERNION_N_V], r[FOUR_BAR_QUATERNION_N_V] = {0}, rt[FOUR_BAR_QUATERNION_N_V] = {0};
         double big = 0.0, worst = 0.0, worst_t = 0.0;
@@ -448,9 +448,9 @@ static int run(const kinegen_model *m, int k) {
         m->solve(s.store, s.off, s.perms, c, x, w);
         m->solve_transposed(s.store, s.off, s.perms, c, xt, w);
         for (i = 0; i < m->n_jac; ++i) {
-            r[m->jac_rows[i]] += s.jac[i] * x[m->jac_cols[i]];
-            rt[m->jac_cols[i]] += s.jac[i] * xt[m->jac_rows[i]];
-            big = fmax(big, fabs(s.jac[i]) * fmax(fabs(x[m->jac_cols[i]]), fabs(xt[m->jac_rows[i]])));
+            r[m->jac_rows[i]] += s.jac_q[i] * x[m->jac_cols[i]];
+            rt[m->jac_cols[i]] += s.jac_q[i] * xt[m->jac_rows[i]];
+            big = fmax(big, fabs(s.jac_q[i]) * fmax(fabs(x[m->jac_cols[i]]), fabs(xt[m->jac_rows[i]])));
         }
         for (i = 0; i < m->n_v; ++i) {
             worst = fmax(worst, fabs(r[i] - c[i]));
@@ -579,7 +579,7 @@ int main(void) {
         kinegen_case_inputs(m, t, inputs);
         if (kinegen_step(&s, t, inputs, inputs + n, inputs + 2 * n) != KINEGEN_OK) return 4;
         printf("jac");
-        for (k = 0; k < m->n_jac; ++k) printf(" %.17g", s.jac[k]); /* the values the factors are of */
+        for (k = 0; k < m->n_jac; ++k) printf(" %.17g", s.jac_q[k]); /* the values the factors are of */
         printf("\n");
         for (j = 0; j <= m->n_v; ++j) { /* every unit vector, then a positive one */
             for (k = 0; k < m->n_v; ++k) b[k] = j < m->n_v ? (k == j) : 0.5 + 0.25 * ((k * 7 + i) % 5);

@@ -1125,7 +1125,10 @@ static int finish(kinegen_solver *s, double t, const double *u, const double *ud
     double condition = o->condition ? condition_estimate(s) : NAN;
     if (o->polish || o->chord) m->retract(s->trial, s->step);
     memcpy(s->q, s->trial, sizeof(double) * (size_t)m->n_q);
-    memcpy(s->jac_q, s->jac, sizeof(double) * (size_t)m->n_jac);
+    double *at_q = s->jac; /* Phi_q at q: the state's by an exchange of the two arrays, not a copy (chain-100's 35 kB
+                            * a step); s->jac is written again before it is read (phi_jac: newton, kinegen_resume) */
+    s->jac = s->jac_q;
+    s->jac_q = at_q;
     memcpy(s->block_sign, s->factor_block_sign, sizeof(int) * (size_t)m->n_blocks);
     memcpy(s->u, u, sizeof(double) * (size_t)m->n_inputs);
     memcpy(s->ud, ud, sizeof(double) * (size_t)m->n_inputs);

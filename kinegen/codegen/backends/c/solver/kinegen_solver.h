@@ -312,7 +312,8 @@ typedef struct kinegen_solver {
     const double *design; /* the design parameters the kernels take, or NULL (a model without them) */
     /* the certificate (see kinegen_options) */
     double *u, *ud;         /* the inputs and their rates at t */
-    double *jac_q;          /* Phi_q values at q */
+    double *jac_q;          /* Phi_q values at q, those the factors in store are of after a step (jac: the
+                               Newton iterates', the array it exchanges with at every accepted step) */
     double *moved, *w1, *w2; /* the step's motion d (the predictor's, then Newton's steps added); work */
     int *block_sign;        /* sign of det of every diagonal block of Phi_q at q (the assembly modes) */
     int *factor_block_sign; /* ... of the factors in store */
