@@ -80,6 +80,19 @@ def test_the_compiled_path_is_the_default_and_matches_python():
     assert np.median(ratio) < 1e-12 and ratio.max() < np.log(3.0)
 
 
+def test_the_condition_estimate_counts_a_zero_as_lapack_does():
+    """kinegen_solver.c's estimate takes a value's sign as LAPACK's xLACN2 does (+1 where it is >= 0, a
+    zero of either sign too): a solve of e_j is exactly zero in the blocks before j's, with the signs of
+    their pivots, and counting -0.0 as -1 (copysign) sent the iteration elsewhere than LAPACK's. On the
+    level cut, C's estimates now equal the Python path's (LAPACK gecon) to 1e-12 in 85 % of the steps;
+    with copysign, 72.6 %."""
+    python, native = systems("excavator_quaternion", "level_cut")
+    estimate = SolverOptions(condition="estimate")
+    a, b = Solver(python, estimate).solve(), Solver(native, estimate).solve()
+    equal = np.abs(np.log(a.conditions / b.conditions)) < 1e-12
+    assert equal.mean() > 0.8, equal.mean()
+
+
 def test_the_input_effects_in_c_are_the_numpy_paths_and_central_differences_of_solved_poses():
     """kinegen_input_effects (dq/du = Phi_q^-1 nu(q, u, e_j) at many configurations, what the working
     range's boundary and sweeps ask for) against the NumPy path (the Python kernels, the batched block
