@@ -186,3 +186,17 @@ def test_the_c_targets_memory_row_counts_the_step_and_a_kernel():
     memory = c_target_memory("chain-3")
     assert memory["workspace"] > 0 and memory["struct"] > 0 and memory["static"] > 0
     assert 0 < memory["stack"] <= 4096, memory
+
+
+def test_the_issue_41_target_line_covers_the_workloads_it_names():
+    """`make bench` checks issue 41's 0.2x CasADi's whole-trajectory C on the workloads the issue
+    measured (chain-14, -50, -100 and the excavator's cases); chain-3 keeps only its untagged ratio."""
+    from kinegen.bench.__main__ import CASADI_C, KINEGEN_C_OWN, targets
+
+    workloads = ("chain-3", "chain-14", "chain-100", "excavator-digging")
+    rows = {(w, name): {"trajectory": t} for w in workloads for name, t in ((KINEGEN_C_OWN, 0.3), (CASADI_C, 1.0))}
+    lines = targets(rows, None)
+    tagged = [line for line in lines if "(issue 41)" in line]
+    assert sorted(line.split()[0] for line in tagged) == ["chain-100", "chain-14", "excavator-digging"], tagged
+    assert all("0.3 (<= 0.2) NOT met" in line for line in tagged), tagged
+    assert any(line.startswith("chain-3 kinegen compiled C (own predictor) trajectory / CasADi whole-trajectory C:") for line in lines), lines
